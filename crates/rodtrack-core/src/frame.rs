@@ -1,0 +1,377 @@
+//! Borrowed frame views with explicit stride and pixel format.
+//!
+//! A [`FrameView`] is validated once when it is made; after that, the samplers read luminance
+//! straight from the raw bytes. Coordinates follow OpenCV: pixel `(i, j)` has its centre at
+//! `(i, j)`.
+//!
+//! Luminance is defined per format so that no full-frame demosaic is ever needed:
+//! - mono: the pixel value;
+//! - RGB: `(r + 2g + b) / 4`;
+//! - Bayer (any of the four layouts): every 2x2 block holds one red, two green and one blue
+//!   pixel, so the block mean is `(r + 2g + b) / 4` whatever the layout. The luminance at
+//!   `(x, y)` is the mean of the 2x2 block centred there; on the pixel grid this is the block
+//!   whose top-left pixel is `(floor(x - 0.5), floor(y - 0.5))`.
+//!
+//! All luminance values are returned on the 8-bit scale (0..255), also for 16-bit formats, so that
+//! thresholds mean the same thing for every camera.
+
+use crate::CoreError;
+use serde::{Deserialize, Serialize};
+
+/// Pixel layout of a raw frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PixelFormat {
+    /// 8-bit grey.
+    Mono8,
+    /// 16-bit grey, little endian.
+    Mono16,
+    /// 8-bit Bayer, first row R G R G ...
+    BayerRggb8,
+    /// 8-bit Bayer, first row B G B G ...
+    BayerBggr8,
+    /// 8-bit Bayer, first row G R G R ...
+    BayerGrbg8,
+    /// 8-bit Bayer, first row G B G B ...
+    BayerGbrg8,
+    /// 16-bit Bayer RGGB, little endian.
+    BayerRggb16,
+    /// 16-bit Bayer BGGR, little endian.
+    BayerBggr16,
+    /// 16-bit Bayer GRBG, little endian.
+    BayerGrbg16,
+    /// 16-bit Bayer GBRG, little endian.
+    BayerGbrg16,
+    /// 8-bit interleaved R, G, B.
+    Rgb8,
+}
+
+/// How luminance is formed from a format's samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LumaKind {
+    /// One sample per pixel.
+    Mono,
+    /// Three interleaved samples per pixel.
+    Rgb,
+    /// A colour mosaic: luminance is the mean of a 2x2 block.
+    Bayer,
+}
+
+impl PixelFormat {
+    /// Every format, for tests and help texts.
+    pub const ALL: [PixelFormat; 11] = [
+        PixelFormat::Mono8,
+        PixelFormat::Mono16,
+        PixelFormat::BayerRggb8,
+        PixelFormat::BayerBggr8,
+        PixelFormat::BayerGrbg8,
+        PixelFormat::BayerGbrg8,
+        PixelFormat::BayerRggb16,
+        PixelFormat::BayerBggr16,
+        PixelFormat::BayerGrbg16,
+        PixelFormat::BayerGbrg16,
+        PixelFormat::Rgb8,
+    ];
+
+    /// Bytes per pixel.
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            PixelFormat::Mono8
+            | PixelFormat::BayerRggb8
+            | PixelFormat::BayerBggr8
+            | PixelFormat::BayerGrbg8
+            | PixelFormat::BayerGbrg8 => 1,
+            PixelFormat::Mono16
+            | PixelFormat::BayerRggb16
+            | PixelFormat::BayerBggr16
+            | PixelFormat::BayerGrbg16
+            | PixelFormat::BayerGbrg16 => 2,
+            PixelFormat::Rgb8 => 3,
+        }
+    }
+
+    /// True for 16-bit formats.
+    pub fn is_16bit(self) -> bool {
+        self.bytes_per_pixel() == 2
+    }
+
+    /// How luminance is formed.
+    pub fn luma_kind(self) -> LumaKind {
+        match self {
+            PixelFormat::Mono8 | PixelFormat::Mono16 => LumaKind::Mono,
+            PixelFormat::Rgb8 => LumaKind::Rgb,
+            _ => LumaKind::Bayer,
+        }
+    }
+
+    /// The name used in files and on the command line (`bayer_rggb8`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFormat::Mono8 => "mono8",
+            PixelFormat::Mono16 => "mono16",
+            PixelFormat::BayerRggb8 => "bayer_rggb8",
+            PixelFormat::BayerBggr8 => "bayer_bggr8",
+            PixelFormat::BayerGrbg8 => "bayer_grbg8",
+            PixelFormat::BayerGbrg8 => "bayer_gbrg8",
+            PixelFormat::BayerRggb16 => "bayer_rggb16",
+            PixelFormat::BayerBggr16 => "bayer_bggr16",
+            PixelFormat::BayerGrbg16 => "bayer_grbg16",
+            PixelFormat::BayerGbrg16 => "bayer_gbrg16",
+            PixelFormat::Rgb8 => "rgb8",
+        }
+    }
+
+    /// Parses a name as written by [`PixelFormat::name`]; GenICam spellings (`BayerRG8`,
+    /// `Mono8`, `RGB8`) are accepted too.
+    pub fn from_name(name: &str) -> Option<PixelFormat> {
+        let lower = name.to_ascii_lowercase();
+        let alias = match lower.as_str() {
+            "bayerrg8" => "bayer_rggb8",
+            "bayerbg8" => "bayer_bggr8",
+            "bayergr8" => "bayer_grbg8",
+            "bayergb8" => "bayer_gbrg8",
+            "bayerrg16" => "bayer_rggb16",
+            "bayerbg16" => "bayer_bggr16",
+            "bayergr16" => "bayer_grbg16",
+            "bayergb16" => "bayer_gbrg16",
+            other => other,
+        };
+        PixelFormat::ALL.into_iter().find(|f| f.name() == alias)
+    }
+}
+
+impl std::fmt::Display for PixelFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A borrowed, validated view of one raw frame.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameView<'a> {
+    data: &'a [u8],
+    width: usize,
+    height: usize,
+    stride: usize,
+    format: PixelFormat,
+}
+
+impl<'a> FrameView<'a> {
+    /// Makes a view; `stride` is the distance between rows in bytes (at least
+    /// `width * bytes_per_pixel`). The last row may end right after its pixels.
+    pub fn new(
+        data: &'a [u8],
+        width: usize,
+        height: usize,
+        stride: usize,
+        format: PixelFormat,
+    ) -> Result<Self, CoreError> {
+        if width < 2 || height < 2 {
+            return Err(CoreError::FrameSize {
+                what: "width and height must be at least 2 px",
+                expected: 2,
+                got: width.min(height),
+            });
+        }
+        let row_bytes = width * format.bytes_per_pixel();
+        if stride < row_bytes {
+            return Err(CoreError::FrameSize {
+                what: "stride (bytes) shorter than one row",
+                expected: row_bytes,
+                got: stride,
+            });
+        }
+        let needed = stride * (height - 1) + row_bytes;
+        if data.len() < needed {
+            return Err(CoreError::FrameSize {
+                what: "frame buffer (bytes) too short",
+                expected: needed,
+                got: data.len(),
+            });
+        }
+        Ok(FrameView {
+            data,
+            width,
+            height,
+            stride,
+            format,
+        })
+    }
+
+    /// A tightly packed view (`stride = width * bytes_per_pixel`).
+    pub fn packed(
+        data: &'a [u8],
+        width: usize,
+        height: usize,
+        format: PixelFormat,
+    ) -> Result<Self, CoreError> {
+        Self::new(data, width, height, width * format.bytes_per_pixel(), format)
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Row stride in bytes.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+    /// Pixel format.
+    pub fn format(&self) -> PixelFormat {
+        self.format
+    }
+    /// The raw bytes.
+    pub fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// Raw sample at byte offset `off` on the 8-bit scale.
+    #[inline(always)]
+    fn raw(&self, off: usize) -> f32 {
+        if self.format.is_16bit() {
+            let v = u16::from_le_bytes([self.data[off], self.data[off + 1]]);
+            v as f32 * (1.0 / 257.0)
+        } else {
+            self.data[off] as f32
+        }
+    }
+
+    /// Luminance of the luma grid node `(i, j)`, on the 8-bit scale. For mono and RGB frames the
+    /// node is pixel `(i, j)`; for Bayer frames it is the 2x2 block with top-left pixel `(i, j)`,
+    /// centred at `(i + 0.5, j + 0.5)`. Out-of-range nodes are clamped to the frame.
+    #[inline]
+    pub fn luma_node(&self, i: isize, j: isize) -> f32 {
+        let kind = self.format.luma_kind();
+        let (maxi, maxj) = match kind {
+            LumaKind::Bayer => (self.width as isize - 2, self.height as isize - 2),
+            _ => (self.width as isize - 1, self.height as isize - 1),
+        };
+        let i = i.clamp(0, maxi) as usize;
+        let j = j.clamp(0, maxj) as usize;
+        let bpp = self.format.bytes_per_pixel();
+        let off = j * self.stride + i * bpp;
+        match kind {
+            LumaKind::Mono => self.raw(off),
+            LumaKind::Rgb => {
+                (self.raw(off) + 2.0 * self.raw(off + 1) + self.raw(off + 2)) * 0.25
+            }
+            LumaKind::Bayer => {
+                let below = off + self.stride;
+                (self.raw(off) + self.raw(off + bpp) + self.raw(below) + self.raw(below + bpp))
+                    * 0.25
+            }
+        }
+    }
+
+    /// Offset of luma grid node coordinates from pixel coordinates: 0.5 for Bayer (a node is a
+    /// 2x2 block), 0 otherwise.
+    pub fn node_offset(&self) -> f32 {
+        match self.format.luma_kind() {
+            LumaKind::Bayer => 0.5,
+            _ => 0.0,
+        }
+    }
+
+    /// Luminance at the nearest luma node to pixel position `(x, y)` (no interpolation).
+    pub fn luma_nearest(&self, x: f32, y: f32) -> f32 {
+        let o = self.node_offset();
+        self.luma_node((x - o).round() as isize, (y - o).round() as isize)
+    }
+
+    /// Bilinear luminance at pixel position `(x, y)`. The scalar reference for the samplers'
+    /// precomputed tables.
+    pub fn luma_bilinear(&self, x: f32, y: f32) -> f32 {
+        let o = self.node_offset();
+        let gx = x - o;
+        let gy = y - o;
+        let i0 = gx.floor();
+        let j0 = gy.floor();
+        let fx = gx - i0;
+        let fy = gy - j0;
+        let (i0, j0) = (i0 as isize, j0 as isize);
+        let a = self.luma_node(i0, j0);
+        let b = self.luma_node(i0 + 1, j0);
+        let c = self.luma_node(i0, j0 + 1);
+        let d = self.luma_node(i0 + 1, j0 + 1);
+        (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+    }
+
+    /// True when the point lies inside the frame with `margin` pixels to spare.
+    pub fn contains(&self, x: f32, y: f32, margin: f32) -> bool {
+        x >= margin
+            && y >= margin
+            && x <= self.width as f32 - 1.0 - margin
+            && y <= self.height as f32 - 1.0 - margin
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_short_buffers_and_strides() {
+        let data = vec![0u8; 100];
+        assert!(matches!(
+            FrameView::new(&data, 10, 10, 9, PixelFormat::Mono8),
+            Err(CoreError::FrameSize { .. })
+        ));
+        assert!(FrameView::new(&data, 10, 10, 10, PixelFormat::Mono8).is_ok());
+        assert!(FrameView::new(&data, 10, 11, 10, PixelFormat::Mono8).is_err());
+        // Padded stride: last row needs only its pixels.
+        assert!(FrameView::new(&data, 8, 10, 10, PixelFormat::Mono8).is_ok());
+        assert!(FrameView::new(&data, 5, 10, 10, PixelFormat::Mono16).is_ok());
+        assert!(FrameView::new(&data, 6, 10, 10, PixelFormat::Mono16).is_err());
+    }
+
+    #[test]
+    fn bayer_luma_is_layout_independent_block_mean() {
+        // A flat colour: R=200, G=100, B=40 in each layout gives (200 + 200 + 40) / 4 = 110.
+        for (fmt, pattern) in [
+            (PixelFormat::BayerRggb8, [200u8, 100, 100, 40]),
+            (PixelFormat::BayerBggr8, [40, 100, 100, 200]),
+            (PixelFormat::BayerGrbg8, [100, 200, 40, 100]),
+            (PixelFormat::BayerGbrg8, [100, 40, 200, 100]),
+        ] {
+            let (w, h) = (8, 6);
+            let mut data = vec![0u8; w * h];
+            for y in 0..h {
+                for x in 0..w {
+                    data[y * w + x] = pattern[(y % 2) * 2 + (x % 2)];
+                }
+            }
+            let f = FrameView::packed(&data, w, h, fmt).unwrap();
+            for (x, y) in [(1.0, 1.0), (3.3, 2.7), (0.0, 0.0), (7.0, 5.0)] {
+                assert!((f.luma_bilinear(x, y) - 110.0).abs() < 1e-4);
+            }
+        }
+    }
+
+    #[test]
+    fn mono16_is_on_8bit_scale_and_stride_is_honoured() {
+        let (w, h, stride) = (4, 3, 12);
+        let mut data = vec![0xAAu8; stride * h];
+        for y in 0..h {
+            for x in 0..w {
+                let v = ((x + 10 * y) as u16) * 257;
+                data[y * stride + 2 * x..y * stride + 2 * x + 2].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        let f = FrameView::new(&data, w, h, stride, PixelFormat::Mono16).unwrap();
+        assert!((f.luma_node(3, 2) - 23.0).abs() < 1e-4);
+        assert!((f.luma_bilinear(1.5, 0.5) - 6.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn format_names_round_trip() {
+        for f in PixelFormat::ALL {
+            assert_eq!(PixelFormat::from_name(f.name()), Some(f));
+        }
+        assert_eq!(PixelFormat::from_name("BayerRG8"), Some(PixelFormat::BayerRggb8));
+        assert_eq!(PixelFormat::from_name("yuv"), None);
+    }
+}

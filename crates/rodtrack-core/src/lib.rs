@@ -1,0 +1,15 @@
+//! rodtrack's algorithms: frame views, the marker, the camera model, line sampling, the
+//! paper's signal steps and rodtrack's enhanced ones, and the measurement record. No I/O.
+
+pub mod calib;
+pub mod camera;
+pub mod error;
+pub mod frame;
+pub mod marker;
+pub mod measurement;
+
+pub use camera::{Camera, CameraIntrinsics, Pose};
+pub use error::CoreError;
+pub use frame::{FrameView, LumaKind, PixelFormat};
+pub use marker::{gray, gray_decode, Marker, MarkerSpec};
+pub use measurement::{CameraId, Measurement, Status};

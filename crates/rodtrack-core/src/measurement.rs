@@ -1,0 +1,168 @@
+//! The measurement record (SPEC section 6), shared by tracking output and simulator truth.
+
+use serde::{Deserialize, Serialize};
+
+/// How far a measurement can be trusted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Marker found and decoded consistently.
+    #[default]
+    Ok,
+    /// The rod's line is in view but no marker was found on it.
+    NotFound,
+    /// A marker was found but part of it is hidden or inconsistent.
+    Occluded,
+    /// The marker's expected place lies outside the frame.
+    OutOfView,
+    /// No usable measurement: the value is the state filter's prediction.
+    Predicted,
+    /// The rod has not been seen for too long to predict.
+    Lost,
+    /// The frame itself was unusable (corrupt, wrong size).
+    BadFrame,
+}
+
+impl Status {
+    /// The name written in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::NotFound => "not_found",
+            Status::Occluded => "occluded",
+            Status::OutOfView => "out_of_view",
+            Status::Predicted => "predicted",
+            Status::Lost => "lost",
+            Status::BadFrame => "bad_frame",
+        }
+    }
+    /// Parses a name written by [`Status::name`].
+    pub fn from_name(s: &str) -> Option<Status> {
+        [
+            Status::Ok,
+            Status::NotFound,
+            Status::Occluded,
+            Status::OutOfView,
+            Status::Predicted,
+            Status::Lost,
+            Status::BadFrame,
+        ]
+        .into_iter()
+        .find(|v| v.name() == s)
+    }
+}
+
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which camera a row comes from: one camera's index, or the fusion of all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum CameraId {
+    /// One camera, by index.
+    Camera(u32),
+    /// The fused estimate.
+    Fused,
+}
+
+impl std::fmt::Display for CameraId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CameraId::Camera(i) => write!(f, "{i}"),
+            CameraId::Fused => f.write_str("fused"),
+        }
+    }
+}
+
+/// One row: one rod, one frame, one camera (or fused).
+///
+/// Values that are unknown (for example the angle of a rod that is not found) are `0.0` with a
+/// status that says so; a record never holds NaN.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Measurement {
+    /// The camera's frame id.
+    pub frame: u64,
+    /// Capture time, seconds.
+    pub timestamp_s: f64,
+    /// Source camera or fused.
+    pub camera: CameraId,
+    /// Rod id.
+    pub rod: u32,
+    /// Translation along the rod's `u` axis from its calibrated zero, mm.
+    pub position_mm: f64,
+    /// Rotation about `u`, right-handed, in `[0, 2 pi)`.
+    pub angle_rad: f64,
+    /// Rotation counting whole turns.
+    pub angle_unwrapped_rad: f64,
+    /// Translation velocity, mm/s (0 when not estimated).
+    pub velocity_mm_s: f64,
+    /// Angular velocity, rad/s (0 when not estimated).
+    pub angular_velocity_rad_s: f64,
+    /// Confidence in `[0, 1]`.
+    pub quality: f64,
+    /// Whether to trust the values.
+    pub status: Status,
+}
+
+impl Measurement {
+    /// A record with no value, for a rod that was not measured.
+    pub fn empty(frame: u64, timestamp_s: f64, camera: CameraId, rod: u32, status: Status) -> Self {
+        Measurement {
+            frame,
+            timestamp_s,
+            camera,
+            rod,
+            position_mm: 0.0,
+            angle_rad: 0.0,
+            angle_unwrapped_rad: 0.0,
+            velocity_mm_s: 0.0,
+            angular_velocity_rad_s: 0.0,
+            quality: 0.0,
+            status,
+        }
+    }
+
+    /// Replaces any non-finite number by 0 and marks the row, so that no NaN is ever written.
+    pub fn sanitized(mut self) -> Self {
+        let mut bad = false;
+        for v in [
+            &mut self.position_mm,
+            &mut self.angle_rad,
+            &mut self.angle_unwrapped_rad,
+            &mut self.velocity_mm_s,
+            &mut self.angular_velocity_rad_s,
+            &mut self.quality,
+        ] {
+            if !v.is_finite() {
+                *v = 0.0;
+                bad = true;
+            }
+        }
+        if !self.timestamp_s.is_finite() {
+            self.timestamp_s = 0.0;
+        }
+        if bad && self.status == Status::Ok {
+            self.status = Status::NotFound;
+            self.quality = 0.0;
+        }
+        self.quality = self.quality.clamp(0.0, 1.0);
+        self
+    }
+}
+
+/// The CSV header of SPEC section 6.
+pub const CSV_COLUMNS: [&str; 11] = [
+    "frame",
+    "timestamp_s",
+    "camera",
+    "rod",
+    "position_mm",
+    "angle_rad",
+    "angle_unwrapped_rad",
+    "velocity_mm_s",
+    "angular_velocity_rad_s",
+    "quality",
+    "status",
+];
