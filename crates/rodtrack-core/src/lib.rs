@@ -3,9 +3,11 @@
 
 pub mod calib;
 pub mod camera;
+pub mod decode;
 pub mod error;
 pub mod frame;
 pub mod marker;
+pub mod signal;
 pub mod measurement;
 
 pub use camera::{Camera, CameraIntrinsics, Pose};
