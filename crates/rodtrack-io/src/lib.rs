@@ -1,1 +1,29 @@
-//! I/O.
+//! rodtrack's I/O: frame sources (image sequences, raw files, and a trait for cameras and the
+//! simulator), measurement sinks (CSV, JSON Lines, UDP), the measurement file reader, and the
+//! multi-camera runtime pipeline.
+//!
+//! Layout:
+//! - [`frame`]: [`FrameMeta`], [`FrameBuffer`] (owned bytes + metadata, lends a
+//!   [`rodtrack_core::FrameView`]), [`BufferPool`], [`Timestamp`];
+//! - [`source`]: the [`FrameSource`] trait, [`ImageSequence`], [`RawSource`], input strings and
+//!   the [`SourceFactory`];
+//! - [`sink`]: the [`MeasurementSink`] trait, [`CsvSink`], [`JsonlSink`], [`UdpSink`], readers;
+//! - [`runtime`]: capture threads, bounded queues, per-camera processing, frame-set grouping,
+//!   latency statistics.
+
+pub mod error;
+pub mod frame;
+pub mod runtime;
+pub mod sink;
+pub mod source;
+
+pub use error::{IoError, SourceError};
+pub use frame::{BufferPool, FrameBuffer, FrameMeta, Timestamp};
+pub use sink::{
+    decode_udp_packet, read_measurements_csv, read_measurements_jsonl, CsvSink, JsonlSink,
+    MeasurementSink, MultiSink, UdpSink, VecSink,
+};
+pub use source::{
+    FrameSource, ImageSequence, ImageSequenceOptions, InputSpec, OpenOptions, RawOptions,
+    RawSource, SourceFactory, SourceInfo,
+};

@@ -1,0 +1,280 @@
+//! Low-latency UDP stream for a control program: one datagram per frame set.
+//!
+//! Layout (version 1), all little endian:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `RTRK` (bytes `52 54 52 4B`) |
+//! | 4 | 2 | version, u16 = 1 |
+//! | 6 | 2 | row count `n`, u16 |
+//! | 8 | 4 | sequence number, u32 (per sink, +1 per datagram, wraps) |
+//! | 12 | 4 | reserved, 0 |
+//! | 16 | 8 | frame id, u64 |
+//! | 24 | 8 | timestamp, u64 nanoseconds (`timestamp_s` of the set's first row) |
+//! | 32 | 56 x n | rows |
+//!
+//! Each row (56 bytes):
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | camera, u32 (`0xFFFF_FFFF` = fused) |
+//! | 4 | 4 | rod, u32 |
+//! | 8 | 8 | position_mm, f64 |
+//! | 16 | 8 | angle_rad, f64 |
+//! | 24 | 8 | angle_unwrapped_rad, f64 |
+//! | 32 | 8 | velocity_mm_s, f64 |
+//! | 40 | 8 | angular_velocity_rad_s, f64 |
+//! | 48 | 4 | quality, f32 |
+//! | 52 | 1 | status code: 0 ok, 1 not_found, 2 occluded, 3 out_of_view, 4 predicted, 5 lost, 6 bad_frame |
+//! | 53 | 3 | reserved, 0 |
+//!
+//! 8 rods x (2 cameras + fused) = 24 rows make 1376 bytes, one Ethernet frame.
+
+use super::MeasurementSink;
+use crate::IoError;
+use rodtrack_core::{CameraId, Measurement, Status};
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+
+/// Datagram magic.
+pub const UDP_MAGIC: [u8; 4] = *b"RTRK";
+/// Layout version.
+pub const UDP_VERSION: u16 = 1;
+/// Header size, bytes.
+pub const UDP_HEADER_BYTES: usize = 32;
+/// Row size, bytes.
+pub const UDP_ROW_BYTES: usize = 56;
+/// Camera value meaning "fused".
+pub const UDP_CAMERA_FUSED: u32 = u32::MAX;
+/// Most rows in one datagram (65507-byte UDP payload limit).
+pub const UDP_MAX_ROWS: usize = (65_507 - UDP_HEADER_BYTES) / UDP_ROW_BYTES;
+/// Default destination.
+pub const UDP_DEFAULT_ADDR: &str = "127.0.0.1:9870";
+
+const STATUSES: [Status; 7] = [
+    Status::Ok,
+    Status::NotFound,
+    Status::Occluded,
+    Status::OutOfView,
+    Status::Predicted,
+    Status::Lost,
+    Status::BadFrame,
+];
+
+/// The status code of the UDP layout.
+pub fn status_code(s: Status) -> u8 {
+    STATUSES.iter().position(|x| *x == s).unwrap_or(0) as u8
+}
+
+/// The status for a UDP status code.
+pub fn status_from_code(c: u8) -> Option<Status> {
+    STATUSES.get(c as usize).copied()
+}
+
+/// One decoded datagram.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UdpPacket {
+    /// Layout version.
+    pub version: u16,
+    /// Sequence number.
+    pub seq: u32,
+    /// Frame id of the set.
+    pub frame: u64,
+    /// Timestamp of the set, ns.
+    pub timestamp_ns: u64,
+    /// The rows (frame and timestamp taken from the header).
+    pub rows: Vec<Measurement>,
+}
+
+/// Encodes rows of one frame set into `out` (cleared first). Frame id and timestamp come from
+/// the first row. Values are sanitized. Fails on more than [`UDP_MAX_ROWS`] rows.
+pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> Result<(), IoError> {
+    if rows.len() > UDP_MAX_ROWS {
+        return Err(IoError::Packet(format!(
+            "{} rows in one frame set, at most {UDP_MAX_ROWS} fit a datagram",
+            rows.len()
+        )));
+    }
+    out.clear();
+    let (frame, ts) = rows
+        .first()
+        .map(|r| {
+            let r = r.sanitized();
+            (
+                r.frame,
+                crate::Timestamp::from_secs_f64(r.timestamp_s).as_nanos(),
+            )
+        })
+        .unwrap_or((0, 0));
+    out.extend_from_slice(&UDP_MAGIC);
+    out.extend_from_slice(&UDP_VERSION.to_le_bytes());
+    out.extend_from_slice(&(rows.len() as u16).to_le_bytes());
+    out.extend_from_slice(&seq.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&frame.to_le_bytes());
+    out.extend_from_slice(&ts.to_le_bytes());
+    for r in rows {
+        let r = r.sanitized();
+        let cam = match r.camera {
+            CameraId::Camera(c) => c,
+            CameraId::Fused => UDP_CAMERA_FUSED,
+        };
+        out.extend_from_slice(&cam.to_le_bytes());
+        out.extend_from_slice(&r.rod.to_le_bytes());
+        for v in [
+            r.position_mm,
+            r.angle_rad,
+            r.angle_unwrapped_rad,
+            r.velocity_mm_s,
+            r.angular_velocity_rad_s,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&(r.quality as f32).to_le_bytes());
+        out.extend_from_slice(&[status_code(r.status), 0, 0, 0]);
+    }
+    Ok(())
+}
+
+fn le<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
+    let mut a = [0u8; N];
+    a.copy_from_slice(&b[at..at + N]);
+    a
+}
+
+/// Decodes a datagram written by [`encode_udp_packet`] (used by tests and clients).
+pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
+    if b.len() < UDP_HEADER_BYTES {
+        return Err(IoError::Packet(format!(
+            "{} bytes, shorter than the {UDP_HEADER_BYTES}-byte header",
+            b.len()
+        )));
+    }
+    if b[0..4] != UDP_MAGIC {
+        return Err(IoError::Packet("bad magic (expected RTRK)".into()));
+    }
+    let version = u16::from_le_bytes(le(b, 4));
+    if version != UDP_VERSION {
+        return Err(IoError::Packet(format!(
+            "version {version}, this decoder reads {UDP_VERSION}"
+        )));
+    }
+    let n = u16::from_le_bytes(le(b, 6)) as usize;
+    let need = UDP_HEADER_BYTES + n * UDP_ROW_BYTES;
+    if b.len() != need {
+        return Err(IoError::Packet(format!(
+            "{n} rows need {need} bytes, got {}",
+            b.len()
+        )));
+    }
+    let seq = u32::from_le_bytes(le(b, 8));
+    let frame = u64::from_le_bytes(le(b, 16));
+    let timestamp_ns = u64::from_le_bytes(le(b, 24));
+    let mut rows = Vec::with_capacity(n);
+    for i in 0..n {
+        let r =
+            &b[UDP_HEADER_BYTES + i * UDP_ROW_BYTES..UDP_HEADER_BYTES + (i + 1) * UDP_ROW_BYTES];
+        let cam = u32::from_le_bytes(le(r, 0));
+        let f = |at: usize| f64::from_le_bytes(le(r, at));
+        let status = status_from_code(r[52])
+            .ok_or_else(|| IoError::Packet(format!("row {i}: unknown status code {}", r[52])))?;
+        rows.push(Measurement {
+            frame,
+            timestamp_s: timestamp_ns as f64 * 1e-9,
+            camera: if cam == UDP_CAMERA_FUSED {
+                CameraId::Fused
+            } else {
+                CameraId::Camera(cam)
+            },
+            rod: u32::from_le_bytes(le(r, 4)),
+            position_mm: f(8),
+            angle_rad: f(16),
+            angle_unwrapped_rad: f(24),
+            velocity_mm_s: f(32),
+            angular_velocity_rad_s: f(40),
+            quality: f64::from(f32::from_le_bytes(le(r, 48))),
+            status,
+        });
+    }
+    Ok(UdpPacket {
+        version,
+        seq,
+        frame,
+        timestamp_ns,
+        rows,
+    })
+}
+
+/// Sends one datagram per frame set to a UDP address (default [`UDP_DEFAULT_ADDR`]).
+///
+/// A `write` call with rows of several frames sends one datagram per run of rows with the same
+/// frame id. Nothing is buffered, so `flush` does nothing.
+#[derive(Debug)]
+pub struct UdpSink {
+    socket: UdpSocket,
+    target: SocketAddr,
+    seq: u32,
+    packet: Vec<u8>,
+}
+
+impl UdpSink {
+    /// Sends to `target` (`host:port`) from an ephemeral local port.
+    pub fn new(target: &str) -> Result<Self, IoError> {
+        let net = |e| IoError::Net {
+            addr: target.to_string(),
+            source: e,
+        };
+        let addr = target
+            .to_socket_addrs()
+            .map_err(net)?
+            .next()
+            .ok_or_else(|| net(std::io::Error::other("address resolves to nothing")))?;
+        let local: SocketAddr = if addr.is_ipv4() {
+            SocketAddr::from(([0, 0, 0, 0], 0))
+        } else {
+            SocketAddr::from(([0u16; 8], 0))
+        };
+        let socket = UdpSocket::bind(local).map_err(net)?;
+        Ok(UdpSink {
+            socket,
+            target: addr,
+            seq: 0,
+            packet: Vec::with_capacity(2048),
+        })
+    }
+
+    /// The destination.
+    pub fn target(&self) -> SocketAddr {
+        self.target
+    }
+
+    fn send(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        encode_udp_packet(self.seq, rows, &mut self.packet)?;
+        self.seq = self.seq.wrapping_add(1);
+        self.socket
+            .send_to(&self.packet, self.target)
+            .map_err(|e| IoError::Net {
+                addr: self.target.to_string(),
+                source: e,
+            })?;
+        Ok(())
+    }
+}
+
+impl MeasurementSink for UdpSink {
+    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        let mut first = Ok(());
+        for group in rows.chunk_by(|a, b| a.frame == b.frame) {
+            for chunk in group.chunks(UDP_MAX_ROWS) {
+                if let Err(e) = self.send(chunk) {
+                    if first.is_ok() {
+                        first = Err(e);
+                    }
+                }
+            }
+        }
+        first
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
