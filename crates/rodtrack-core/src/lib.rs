@@ -6,8 +6,10 @@ pub mod camera;
 pub mod decode;
 pub mod error;
 pub mod frame;
+pub mod line;
 pub mod marker;
 pub mod signal;
+pub mod track;
 pub mod measurement;
 
 pub use camera::{Camera, CameraIntrinsics, Pose};
@@ -15,3 +17,4 @@ pub use error::CoreError;
 pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
+pub use track::{Mode, RodResult, RodTracker};

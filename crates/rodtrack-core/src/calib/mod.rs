@@ -1,5 +1,14 @@
 //! Calibration (paper 2.7): inputs, the calibration file, and the measurements that make it.
 
+pub mod compute;
+pub mod file;
 pub mod inputs;
 
-pub use inputs::{CalibrationInputs, ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodInputs};
+pub use compute::{calibrate_rod, DEFAULT_VIEW_ANGLE_DEG};
+pub use file::{
+    CalibrationFile, CameraCalibration, EnhancedParams, PaperParams, Residuals, RodCalibration,
+    CALIBRATION_VERSION,
+};
+pub use inputs::{
+    CalibrationInputs, ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
+};

@@ -1,0 +1,311 @@
+//! The calibration file: everything tracking needs per rod, human-readable (TOML), validated on
+//! load with errors that name the rod and the field.
+
+use crate::calib::inputs::OpencvModel;
+use crate::line::Knots;
+use crate::marker::{Marker, MarkerSpec};
+use crate::{CoreError, PixelFormat};
+use serde::{Deserialize, Serialize};
+
+/// Current file version.
+pub const CALIBRATION_VERSION: u32 = 1;
+
+/// The paper's per-rod parameters (section 2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperParams {
+    /// Trajectory `x(t) = a t^2 + b t + c`: `[a, b, c]`.
+    pub trajectory_abc: [f64; 3],
+    /// Camera view angle of eq. (1), degrees.
+    pub view_angle_deg: f64,
+    /// Barcode cell length on the line, samples.
+    pub cell_px: f64,
+    /// +1 when the marker's `u` runs towards larger line indices, else -1.
+    pub direction: i32,
+    /// `O_m`: offset from the kernel position to the Gray-code samples, samples (signed).
+    pub offset_px: f64,
+    /// `S_m`: spacing of bit spaces, samples (signed).
+    pub spacing_px: f64,
+    /// `T_hat`: stripe period across the rod over bit space 0, px.
+    pub period_px: f64,
+    /// `phi_offset`, rad.
+    pub phase_offset_rad: f64,
+    /// Sign applied to eq. (6) so that the phase grows with the angle.
+    pub phase_sign: i32,
+    /// `N_p`: pixels each side of the centre line for eq. (6).
+    pub half_width_px: u32,
+    /// mm per line sample, from the barcode's known length.
+    pub mm_per_px: f64,
+    /// Kernel position `p_m` in the reference frame.
+    pub zero_px: f64,
+    /// Angle removed so the reference frame reads its known angle, rad.
+    pub angle_offset_rad: f64,
+}
+
+/// rodtrack's enhanced per-rod parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnhancedParams {
+    /// +1 when the print angle grows along the line's normal `(-ty, tx)`, else -1.
+    pub phase_sign: i32,
+    /// Correction added to the phase-derived fraction, Gray steps.
+    pub phase_offset_steps: f64,
+    /// Angle removed so the reference frame reads its known angle, rad.
+    pub angle_offset_rad: f64,
+}
+
+/// What calibration measured about its own quality (informative; not used for tracking).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Residuals {
+    /// RMS distance of the path points from the fitted path, px.
+    pub path_rms_px: f64,
+    /// Largest distance of a path point from the fitted path, px.
+    pub path_max_px: f64,
+    /// Barcode length measured in the reference frame divided by its nominal length.
+    pub scale_ratio: f64,
+    /// RMS of the barcode edges around the fitted scale, mm.
+    pub edge_rms_mm: f64,
+    /// Barcode correlation peak in the reference frame (1 = perfect).
+    pub reference_ncc: f64,
+    /// Distance of the Gray code from the phase in the reference frame, Gray steps.
+    pub reference_code_phase_steps: f64,
+    /// Apparent rod radius measured from the silhouette over the predicted one.
+    pub radius_ratio: f64,
+    /// Warnings for the operator.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// One rod's calibration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RodCalibration {
+    /// Rod id.
+    pub rod: u32,
+    /// The marker on this rod.
+    pub marker: MarkerSpec,
+    /// Travel range, mm.
+    pub travel_mm: [f64; 2],
+    /// Known pose in the reference frame.
+    pub reference_position_mm: f64,
+    /// Known angle in the reference frame.
+    pub reference_angle_rad: f64,
+    /// How the enhanced line was made (`camera` or `poly`).
+    pub line_model: String,
+    /// The clicked or found path points.
+    pub path_points_px: Vec<[f64; 2]>,
+    /// Enhanced mode's line.
+    pub knots: Knots,
+    /// Enhanced mode's parameters.
+    pub enhanced: EnhancedParams,
+    /// Paper mode's parameters (absent when the rod does not run along image rows).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paper: Option<PaperParams>,
+    /// Calibration's own measurements of its quality.
+    #[serde(default)]
+    pub residuals: Residuals,
+}
+
+/// One camera's calibration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraCalibration {
+    /// Camera name.
+    pub name: String,
+    /// Camera index in the output rows.
+    pub index: u32,
+    /// Image width, px.
+    pub image_width: usize,
+    /// Image height, px.
+    pub image_height: usize,
+    /// Pixel format name.
+    pub pixel_format: String,
+    /// Frames per second (timestamps of image sequences).
+    pub fps: f64,
+    /// The OpenCV model, when one was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub opencv_model: Option<OpencvModel>,
+    /// The rods this camera sees.
+    pub rods: Vec<RodCalibration>,
+}
+
+/// The calibration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationFile {
+    /// File version.
+    pub version: u32,
+    /// Cameras.
+    pub cameras: Vec<CameraCalibration>,
+}
+
+impl CameraCalibration {
+    /// The pixel format, validated.
+    pub fn format(&self) -> Result<PixelFormat, CoreError> {
+        PixelFormat::from_name(&self.pixel_format).ok_or_else(|| CoreError::Calibration {
+            rod: u32::MAX,
+            field: format!("cameras[{}].pixel_format", self.index),
+            reason: format!("unknown pixel format {:?}", self.pixel_format),
+        })
+    }
+}
+
+impl CalibrationFile {
+    /// Checks every field; the error names the camera, rod and field.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        if self.version != CALIBRATION_VERSION {
+            return Err(CoreError::Calibration {
+                rod: u32::MAX,
+                field: "version".into(),
+                reason: format!("must be {CALIBRATION_VERSION}, got {}", self.version),
+            });
+        }
+        for cam in &self.cameras {
+            cam.format()?;
+            if cam.image_width < 16 || cam.image_height < 16 {
+                return Err(CoreError::Calibration {
+                    rod: u32::MAX,
+                    field: format!("cameras[{}].image_width/height", cam.index),
+                    reason: "must be at least 16 px".into(),
+                });
+            }
+            if !(cam.fps.is_finite() && cam.fps > 0.0) {
+                return Err(CoreError::Calibration {
+                    rod: u32::MAX,
+                    field: format!("cameras[{}].fps", cam.index),
+                    reason: format!("must be positive, got {}", cam.fps),
+                });
+            }
+            for rod in &cam.rods {
+                rod.validate(cam.image_width, cam.image_height)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RodCalibration {
+    /// Checks the rod's fields against the image size.
+    pub fn validate(&self, width: usize, height: usize) -> Result<Marker, CoreError> {
+        let rod = self.rod;
+        let err = |field: &str, reason: String| CoreError::Calibration {
+            rod,
+            field: field.to_string(),
+            reason,
+        };
+        let marker = self.marker.validate().map_err(|e| match e {
+            CoreError::Marker { field, reason } => err(&format!("marker.{field}"), reason),
+            other => other,
+        })?;
+        let finite = |field: &str, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(err(field, format!("must be a finite number, got {v}")))
+            }
+        };
+        finite("travel_mm[0]", self.travel_mm[0])?;
+        finite("travel_mm[1]", self.travel_mm[1])?;
+        if self.travel_mm[0] > self.travel_mm[1] {
+            return Err(err(
+                "travel_mm",
+                format!("must be [min, max], got {:?}", self.travel_mm),
+            ));
+        }
+        finite("reference_position_mm", self.reference_position_mm)?;
+        finite("reference_angle_rad", self.reference_angle_rad)?;
+        let k = &self.knots;
+        if k.len() < 2 {
+            return Err(err("knots", "needs at least 2 knots".into()));
+        }
+        if !(k.step_mm.is_finite() && k.step_mm > 0.0) {
+            return Err(err("knots.step_mm", format!("must be positive, got {}", k.step_mm)));
+        }
+        finite("knots.s0_mm", k.s0_mm)?;
+        if k.y_px.len() != k.len() || k.radius_px.len() != k.len() {
+            return Err(err(
+                "knots",
+                format!(
+                    "x_px, y_px and radius_px must have the same length ({}, {}, {})",
+                    k.len(),
+                    k.y_px.len(),
+                    k.radius_px.len()
+                ),
+            ));
+        }
+        for (name, v) in [("knots.x_px", &k.x_px), ("knots.y_px", &k.y_px)] {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(err(name, format!("entry {i} is not a finite number")));
+            }
+        }
+        if let Some(i) = k
+            .radius_px
+            .iter()
+            .position(|r| !(r.is_finite() && *r > 0.5 && *r < (width.max(height) as f64)))
+        {
+            return Err(err(
+                "knots.radius_px",
+                format!("entry {i} must be a plausible radius in px, got {}", k.radius_px[i]),
+            ));
+        }
+        if k.s0_mm > self.travel_mm[0] || k.s_end_mm() < self.travel_mm[1] + marker.length_mm() {
+            return Err(err(
+                "knots",
+                format!(
+                    "cover {:.1}..{:.1} mm but the marker moves over {:.1}..{:.1} mm",
+                    k.s0_mm,
+                    k.s_end_mm(),
+                    self.travel_mm[0],
+                    self.travel_mm[1] + marker.length_mm()
+                ),
+            ));
+        }
+        let e = &self.enhanced;
+        if e.phase_sign != 1 && e.phase_sign != -1 {
+            return Err(err(
+                "enhanced.phase_sign",
+                format!("must be 1 or -1, got {}", e.phase_sign),
+            ));
+        }
+        finite("enhanced.phase_offset_steps", e.phase_offset_steps)?;
+        finite("enhanced.angle_offset_rad", e.angle_offset_rad)?;
+        if let Some(p) = &self.paper {
+            for (name, v) in [
+                ("paper.view_angle_deg", p.view_angle_deg),
+                ("paper.cell_px", p.cell_px),
+                ("paper.period_px", p.period_px),
+                ("paper.mm_per_px", p.mm_per_px),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(err(name, format!("must be positive, got {v}")));
+                }
+            }
+            for (name, v) in [
+                ("paper.offset_px", p.offset_px),
+                ("paper.spacing_px", p.spacing_px),
+                ("paper.phase_offset_rad", p.phase_offset_rad),
+                ("paper.zero_px", p.zero_px),
+                ("paper.angle_offset_rad", p.angle_offset_rad),
+                ("paper.trajectory_abc[0]", p.trajectory_abc[0]),
+                ("paper.trajectory_abc[1]", p.trajectory_abc[1]),
+                ("paper.trajectory_abc[2]", p.trajectory_abc[2]),
+            ] {
+                finite(name, v)?;
+            }
+            if p.direction.abs() != 1 || p.phase_sign.abs() != 1 {
+                return Err(err(
+                    "paper.direction/phase_sign",
+                    "must be 1 or -1".into(),
+                ));
+            }
+            if p.half_width_px == 0 || p.half_width_px > 200 {
+                return Err(err(
+                    "paper.half_width_px",
+                    format!("must be 1..200, got {}", p.half_width_px),
+                ));
+            }
+        }
+        Ok(marker)
+    }
+}
