@@ -11,6 +11,7 @@ pub mod marker;
 pub mod signal;
 pub mod track;
 pub mod measurement;
+pub mod pipeline;
 
 pub use camera::{Camera, CameraIntrinsics, Pose};
 pub use error::CoreError;
@@ -18,3 +19,4 @@ pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
 pub use track::{Mode, RodResult, RodTracker};
+pub use pipeline::CameraPipeline;

@@ -8,7 +8,7 @@ use crate::calib::RodCalibration;
 use crate::decode::{decode_bits, paper_fuse, paper_phase, paper_threshold};
 use crate::frame::FrameView;
 use crate::line::{Knots, LinePoint, PaperLine};
-use crate::marker::{gray_decode, Marker};
+use crate::marker::Marker;
 use crate::measurement::Status;
 use crate::signal::{
     argmax, argmax_sq, hysteresis, ncc_cells_prefix, ncc_direct, paper_bandpass,
@@ -100,7 +100,6 @@ struct EnhancedState {
     profile: Vec<f32>,
     /// Phase sample angles (rad from the facing line) and their sin/cos of `f delta`.
     phase_delta: Vec<(f64, f64, f64, f64)>,
-    phase_cycles: f64,
 }
 
 /// Measures one rod in frames of one camera.
@@ -236,7 +235,6 @@ impl RodTracker {
             edge_offsets: Vec::with_capacity(64),
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             phase_delta,
-            phase_cycles: cycles,
         }
     }
 
@@ -564,7 +562,6 @@ impl RodTracker {
         let q_edge = (1.0 - edge_std / (0.2 * cell)).clamp(0.0, 1.0);
         let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
         let quality = (q_ncc * q_amp * q_edge * q_code).powf(0.25);
-        let _ = gray_decode;
         RodResult {
             position_mm: position,
             angle_rad: angle,

@@ -1,1 +1,40 @@
-fn main() {}
+//! `rodtrack`: visual encoders for rods that slide and turn.
+
+mod calibrate;
+mod calibration_io;
+mod score;
+mod track;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// rodtrack: measure the translation and rotation of rods from camera images.
+#[derive(Debug, Parser)]
+#[command(name = "rodtrack", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Calibrate from calibration-inputs files (one JSON per camera) into a calibration file.
+    Calibrate(calibrate::Args),
+    /// Track rods in recordings or live sources and write measurements.
+    Track(track::Args),
+    /// Score measurements against ground truth.
+    Score(score::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result: Result<()> = match cli.command {
+        Command::Calibrate(a) => calibrate::run(a),
+        Command::Track(a) => track::run(a),
+        Command::Score(a) => score::run(a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    }
+}

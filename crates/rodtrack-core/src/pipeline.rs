@@ -1,0 +1,112 @@
+//! One camera, one frame, every rod: the per-camera pipeline that turns a frame into rows.
+
+use crate::calib::CameraCalibration;
+use crate::frame::FrameView;
+use crate::measurement::{CameraId, Measurement, Status};
+use crate::track::{Mode, RodResult, RodTracker};
+use crate::CoreError;
+use std::f64::consts::{PI, TAU};
+
+/// Per-rod state kept across frames: the multi-turn count.
+#[derive(Debug, Clone, Copy, Default)]
+struct TurnState {
+    last_angle: Option<f64>,
+    unwrapped: f64,
+}
+
+/// Every rod of one camera.
+#[derive(Debug, Clone)]
+pub struct CameraPipeline {
+    index: u32,
+    rods: Vec<RodTracker>,
+    turns: Vec<TurnState>,
+    last: Vec<RodResult>,
+}
+
+impl CameraPipeline {
+    /// Builds the trackers of every rod of a camera's calibration.
+    pub fn new(cal: &CameraCalibration, mode: Mode) -> Result<CameraPipeline, CoreError> {
+        let rods = cal
+            .rods
+            .iter()
+            .map(|r| RodTracker::new(r, cal.image_width, cal.image_height, mode))
+            .collect::<Result<Vec<_>, _>>()?;
+        let n = rods.len();
+        Ok(CameraPipeline {
+            index: cal.index,
+            rods,
+            turns: vec![TurnState::default(); n],
+            last: vec![RodResult::default(); n],
+        })
+    }
+
+    /// The camera index written in rows.
+    pub fn index(&self) -> u32 {
+        self.index
+    }
+    /// The rod trackers.
+    pub fn rods(&self) -> &[RodTracker] {
+        &self.rods
+    }
+    /// The last frame's raw results, one per rod.
+    pub fn last_results(&self) -> &[RodResult] {
+        &self.last
+    }
+
+    /// Measures every rod in `frame` and appends one row per rod to `out`. A frame that does
+    /// not fit gives an error and no rows; use [`CameraPipeline::bad_frame`] to mark it.
+    pub fn process(
+        &mut self,
+        frame: &FrameView,
+        frame_id: u64,
+        timestamp_s: f64,
+        out: &mut Vec<Measurement>,
+    ) -> Result<(), CoreError> {
+        for ((tr, turn), last) in self.rods.iter_mut().zip(&mut self.turns).zip(&mut self.last) {
+            let r = tr.process(frame)?;
+            *last = r;
+            let mut m = Measurement::empty(
+                frame_id,
+                timestamp_s,
+                CameraId::Camera(self.index),
+                tr.rod(),
+                r.status,
+            );
+            if r.status == Status::Ok {
+                m.position_mm = r.position_mm;
+                m.angle_rad = r.angle_rad;
+                // Multi-turn count: the absolute angle needs no history, the turn count does.
+                turn.unwrapped = match turn.last_angle {
+                    None => r.angle_rad,
+                    Some(prev) => {
+                        let mut d = (r.angle_rad - prev).rem_euclid(TAU);
+                        if d > PI {
+                            d -= TAU;
+                        }
+                        turn.unwrapped + d
+                    }
+                };
+                turn.last_angle = Some(r.angle_rad);
+                m.angle_unwrapped_rad = turn.unwrapped;
+            } else {
+                m.angle_unwrapped_rad = turn.unwrapped;
+            }
+            m.quality = r.quality;
+            out.push(m.sanitized());
+        }
+        Ok(())
+    }
+
+    /// Rows marking every rod of an unusable frame.
+    pub fn bad_frame(&self, frame_id: u64, timestamp_s: f64, out: &mut Vec<Measurement>) {
+        for tr in &self.rods {
+            out.push(Measurement::empty(
+                frame_id,
+                timestamp_s,
+                CameraId::Camera(self.index),
+                tr.rod(),
+                Status::BadFrame,
+            ));
+        }
+    }
+}

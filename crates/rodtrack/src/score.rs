@@ -1,0 +1,196 @@
+//! `rodtrack score`: measurements against ground truth.
+
+use anyhow::{Context, Result};
+use rodtrack_core::{CameraId, Measurement, Status};
+use rodtrack_io::{read_measurements_csv, read_measurements_jsonl};
+use std::collections::{BTreeMap, HashMap};
+use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rodtrack score`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Ground truth (CSV with a `visible` column, as `rodtrack simulate` writes).
+    #[arg(long)]
+    pub truth: PathBuf,
+    /// Measurements (CSV or JSON Lines).
+    #[arg(long)]
+    pub measured: PathBuf,
+    /// Write the table as JSON here too.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Error statistics of one rod (or all).
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub struct Stats {
+    /// Rows compared (reported ok on a visible marker).
+    pub n: usize,
+    /// Visible truth rows.
+    pub visible: usize,
+    /// Position error mean, mm.
+    pub pos_mean_mm: f64,
+    /// Position error std, mm.
+    pub pos_std_mm: f64,
+    /// Largest position error, mm.
+    pub pos_max_mm: f64,
+    /// Angle error mean (wrapped), rad.
+    pub ang_mean_rad: f64,
+    /// Angle error std, rad.
+    pub ang_std_rad: f64,
+    /// Largest angle error, rad.
+    pub ang_max_rad: f64,
+    /// Rows whose angle is off by a Gray step (2 pi / 32) or more, or position by 5 mm.
+    pub gross: usize,
+    /// Share of visible rows reported ok.
+    pub coverage: f64,
+    /// Rows not visible but reported ok.
+    pub false_ok: usize,
+    #[serde(skip)]
+    acc: [f64; 4],
+}
+
+impl Stats {
+    fn add(&mut self, ep: f64, ea: f64) {
+        self.n += 1;
+        self.acc[0] += ep;
+        self.acc[1] += ep * ep;
+        self.acc[2] += ea;
+        self.acc[3] += ea * ea;
+        self.pos_max_mm = self.pos_max_mm.max(ep.abs());
+        self.ang_max_rad = self.ang_max_rad.max(ea.abs());
+        if ea.abs() >= TAU / 32.0 || ep.abs() >= 5.0 {
+            self.gross += 1;
+        }
+    }
+    fn finish(&mut self) {
+        let n = self.n.max(1) as f64;
+        self.pos_mean_mm = self.acc[0] / n;
+        self.pos_std_mm = (self.acc[1] / n - self.pos_mean_mm.powi(2)).max(0.0).sqrt();
+        self.ang_mean_rad = self.acc[2] / n;
+        self.ang_std_rad = (self.acc[3] / n - self.ang_mean_rad.powi(2)).max(0.0).sqrt();
+        self.coverage = if self.visible > 0 {
+            self.n as f64 / self.visible as f64
+        } else {
+            0.0
+        };
+    }
+}
+
+/// Signed angle difference wrapped to (-pi, pi].
+pub fn wrap_angle(d: f64) -> f64 {
+    let w = d.rem_euclid(TAU);
+    if w > std::f64::consts::PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+/// Reads a measurement file by extension.
+pub fn read_rows(path: &Path) -> Result<Vec<(Measurement, Option<bool>)>> {
+    let r = if path.extension().is_some_and(|e| e == "jsonl" || e == "json") {
+        read_measurements_jsonl(path)
+    } else {
+        read_measurements_csv(path)
+    };
+    r.with_context(|| format!("reading {}", path.display()))
+}
+
+/// Scores rows against truth: per rod and overall (`None` key).
+pub fn score(
+    truth: &[(Measurement, Option<bool>)],
+    measured: &[(Measurement, Option<bool>)],
+) -> BTreeMap<Option<u32>, Stats> {
+    let key = |m: &Measurement| {
+        let cam = match m.camera {
+            CameraId::Camera(c) => c as i64,
+            CameraId::Fused => -1,
+        };
+        (m.frame, cam, m.rod)
+    };
+    let mut t: HashMap<(u64, i64, u32), (Measurement, bool)> = HashMap::new();
+    let mut t_any: HashMap<(u64, u32), (Measurement, bool)> = HashMap::new();
+    for (m, vis) in truth {
+        let v = vis.unwrap_or(true);
+        t.insert(key(m), (*m, v));
+        let e = t_any.entry((m.frame, m.rod)).or_insert((*m, v));
+        e.1 |= v;
+    }
+    let mut out: BTreeMap<Option<u32>, Stats> = BTreeMap::new();
+    for (m, vis) in truth {
+        if vis.unwrap_or(true) {
+            out.entry(Some(m.rod)).or_default().visible += 1;
+            out.entry(None).or_default().visible += 1;
+        }
+    }
+    for (m, _) in measured {
+        let found = match m.camera {
+            CameraId::Fused => t_any.get(&(m.frame, m.rod)).copied(),
+            _ => t.get(&key(m)).copied(),
+        };
+        let Some((tm, visible)) = found else { continue };
+        if m.status != Status::Ok {
+            continue;
+        }
+        if !visible {
+            out.entry(Some(m.rod)).or_default().false_ok += 1;
+            out.entry(None).or_default().false_ok += 1;
+            continue;
+        }
+        let ep = m.position_mm - tm.position_mm;
+        let ea = wrap_angle(m.angle_rad - tm.angle_rad);
+        out.entry(Some(m.rod)).or_default().add(ep, ea);
+        out.entry(None).or_default().add(ep, ea);
+    }
+    for s in out.values_mut() {
+        s.finish();
+    }
+    out
+}
+
+/// Prints a score table.
+pub fn print_table(table: &BTreeMap<Option<u32>, Stats>) {
+    println!(
+        "{:>5} {:>7} {:>9} {:>9} {:>9} {:>10} {:>10} {:>10} {:>6} {:>8} {:>8}",
+        "rod", "rows", "pos mean", "pos std", "pos max", "ang mean", "ang std", "ang max", "gross",
+        "coverage", "false ok"
+    );
+    let mut rows: Vec<_> = table.iter().filter(|(k, _)| k.is_some()).collect();
+    rows.extend(table.iter().filter(|(k, _)| k.is_none()));
+    for (k, s) in rows {
+        let name = k.map_or("all".to_string(), |r| r.to_string());
+        println!(
+            "{:>5} {:>7} {:>9.3} {:>9.3} {:>9.3} {:>10.4} {:>10.4} {:>10.4} {:>6} {:>7.1}% {:>8}",
+            name,
+            s.n,
+            s.pos_mean_mm,
+            s.pos_std_mm,
+            s.pos_max_mm,
+            s.ang_mean_rad,
+            s.ang_std_rad,
+            s.ang_max_rad,
+            s.gross,
+            100.0 * s.coverage,
+            s.false_ok
+        );
+    }
+    println!("(mm and rad; gross: angle off by >= 2pi/32 or position by >= 5 mm)");
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    let truth = read_rows(&args.truth)?;
+    let measured = read_rows(&args.measured)?;
+    let table = score(&truth, &measured);
+    print_table(&table);
+    if let Some(p) = args.json {
+        let v: Vec<_> = table
+            .iter()
+            .map(|(k, s)| serde_json::json!({"rod": k, "stats": s}))
+            .collect();
+        std::fs::write(&p, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
+    Ok(())
+}
