@@ -66,6 +66,12 @@ pub trait FrameSource: Send {
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError>;
 }
 
+impl std::fmt::Debug for dyn FrameSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "FrameSource({:?})", self.info().name)
+    }
+}
+
 impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
     fn info(&self) -> SourceInfo {
         (**self).info()
