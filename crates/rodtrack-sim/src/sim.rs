@@ -1,0 +1,617 @@
+//! The simulation: scene + cameras + scenario -> frames, ground truth and calibration inputs.
+
+use crate::cameras::SimCamera;
+use crate::geom::{Obj, Shader, WorldGeom, WorldState, V3};
+use crate::render::{noise_table, CameraRenderer, RenderMode};
+use crate::rng::{hash_words, Rng};
+use crate::scenario::Scenario;
+use crate::scene::{Lighting, SceneConfig};
+use crate::SimError;
+use rodtrack_core::calib::{
+    CalibrationInputs, ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
+};
+use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::TAU;
+
+/// What [`Simulation::render`] produced.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FrameMeta {
+    /// Frame id (shared by all cameras of a frame: hardware-synchronised).
+    pub frame_id: u64,
+    /// Trigger time, s (shared by all cameras of a frame).
+    pub timestamp_s: f64,
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// Row stride, bytes.
+    pub stride: usize,
+    /// Pixel format.
+    pub format: PixelFormat,
+}
+
+/// One ground-truth row: the SPEC section 6 record plus whether the whole marker is visible.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TruthRow {
+    /// The record: `quality` 1, `status` ok when visible, else occluded / out_of_view.
+    pub m: Measurement,
+    /// True when the whole marker is in the frame and nothing hides it.
+    pub visible: bool,
+}
+
+/// Options for [`Simulation::calibration_inputs_with`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibOptions {
+    /// Write the true intrinsics as `opencv_model_optional`.
+    pub include_opencv_model: bool,
+    /// Standard deviation of the "clicked" path points, px.
+    pub click_noise_px: f64,
+    /// Path points per rod (3 to 5).
+    pub points_per_rod: usize,
+}
+
+impl Default for CalibOptions {
+    fn default() -> Self {
+        CalibOptions {
+            include_opencv_model: true,
+            click_noise_px: 1.0,
+            points_per_rod: 4,
+        }
+    }
+}
+
+/// Everything but the per-camera renderers (so both can be borrowed at once).
+#[derive(Debug, Clone)]
+pub(crate) struct Ctx {
+    pub scene: SceneConfig,
+    pub scenario: Scenario,
+    pub cameras: Vec<SimCamera>,
+    pub mode: RenderMode,
+    pub seed: u64,
+    pub shader: Shader,
+    pub noise: Vec<f32>,
+    /// Reference pose per rod: (position_mm, angle_rad).
+    pub reference: Vec<(f64, f64)>,
+}
+
+/// A running simulation.
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    pub(crate) ctx: Ctx,
+    pub(crate) renderers: Vec<CameraRenderer>,
+}
+
+/// Marker sample positions along `u` for the visibility test, as fractions of its length.
+const VIS_U: [f64; 9] = [0.003, 0.04, 0.2, 0.4, 0.6, 0.69, 0.75, 0.9, 0.997];
+/// Angles (rad) around the direction towards the camera for the visibility test.
+const VIS_ANGLE: [f64; 3] = [-0.8, 0.0, 0.8];
+
+impl Simulation {
+    /// Builds the simulation: precomputes every camera's ray table, background and rod strips
+    /// (about a second per camera; cameras are prepared in parallel).
+    pub fn new(
+        scene: SceneConfig,
+        cameras: Vec<SimCamera>,
+        scenario: Scenario,
+        mode: RenderMode,
+    ) -> Result<Simulation, SimError> {
+        let marker = scene.marker.validate()?;
+        if scenario.rods.len() != scene.rods.len() {
+            return Err(SimError::Config(format!(
+                "scenario `{}` moves {} rods, the scene has {}",
+                scenario.name,
+                scenario.rods.len(),
+                scene.rods.len()
+            )));
+        }
+        if !(scenario.fps.is_finite() && scenario.fps > 0.0) {
+            return Err(SimError::Config(format!(
+                "fps must be positive, got {}",
+                scenario.fps
+            )));
+        }
+        for r in &scene.rods {
+            if !(r.diameter_mm > 0.0 && r.travel_mm >= 0.0) {
+                return Err(SimError::Config(format!(
+                    "rod at x = {} mm: diameter and travel must be positive",
+                    r.x_mm
+                )));
+            }
+        }
+        let _ = marker;
+        for c in &cameras {
+            let ok = matches!(
+                c.pixel_format,
+                PixelFormat::Mono8
+                    | PixelFormat::Rgb8
+                    | PixelFormat::BayerRggb8
+                    | PixelFormat::BayerBggr8
+                    | PixelFormat::BayerGrbg8
+                    | PixelFormat::BayerGbrg8
+            );
+            if !ok {
+                return Err(SimError::UnsupportedFormat {
+                    camera: c.name.clone(),
+                    format: c.pixel_format.name().to_string(),
+                });
+            }
+            if c.camera.width < 2 || c.camera.height < 2 {
+                return Err(SimError::Config(format!(
+                    "camera `{}`: image too small",
+                    c.name
+                )));
+            }
+        }
+        let lighting: Lighting = scenario.lighting.unwrap_or(scene.lighting);
+        let mut lit_scene = scene.clone();
+        lit_scene.lighting = lighting;
+        let shader = Shader::new(&lit_scene);
+        let renderers: Vec<CameraRenderer> = std::thread::scope(|s| {
+            let handles: Vec<_> = cameras
+                .iter()
+                .map(|c| {
+                    let (sc, sh) = (&lit_scene, &shader);
+                    s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("camera preparation thread panicked"))
+                .collect()
+        });
+        let reference = vec![(0.0, 0.0); scene.rods.len()];
+        Ok(Simulation {
+            ctx: Ctx {
+                scene,
+                scenario,
+                cameras,
+                mode,
+                seed: 1,
+                shader,
+                noise: noise_table(1 << 20, 0x0015_E7AB),
+                reference,
+            },
+            renderers,
+        })
+    }
+
+    /// Sets the seed of the sensor noise (same seed, same bytes).
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.ctx.seed = seed;
+        self
+    }
+
+    /// Sets the reference pose `(position_mm, angle_rad)` of every rod (default all zero).
+    pub fn set_reference_poses(&mut self, poses: &[(f64, f64)]) -> Result<(), SimError> {
+        if poses.len() != self.ctx.scene.rods.len() {
+            return Err(SimError::Config(format!(
+                "{} reference poses for {} rods",
+                poses.len(),
+                self.ctx.scene.rods.len()
+            )));
+        }
+        self.ctx.reference = poses.to_vec();
+        Ok(())
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &SceneConfig {
+        &self.ctx.scene
+    }
+    /// The cameras.
+    pub fn cameras(&self) -> &[SimCamera] {
+        &self.ctx.cameras
+    }
+    /// The scenario.
+    pub fn scenario(&self) -> &Scenario {
+        &self.ctx.scenario
+    }
+    /// The render mode.
+    pub fn mode(&self) -> RenderMode {
+        self.ctx.mode
+    }
+    /// Number of frames of the scenario.
+    pub fn frame_count(&self) -> usize {
+        self.ctx.scenario.frame_count()
+    }
+    /// Bytes of one frame of camera `cam` (tightly packed).
+    pub fn frame_bytes(&self, cam: usize) -> Result<usize, SimError> {
+        Ok(self.ctx.camera(cam)?.frame_bytes())
+    }
+    /// Trigger time of frame `i`, s.
+    pub fn timestamp_s(&self, frame_index: usize) -> f64 {
+        frame_index as f64 / self.ctx.scenario.fps
+    }
+    /// The world state at time `t_s`.
+    pub fn state_at(&self, t_s: f64) -> WorldState {
+        WorldState::at(&self.ctx.scene, &self.ctx.scenario, t_s)
+    }
+
+    /// Renders frame `frame_index` of camera `camera_index` into `out` (tightly packed,
+    /// `width * bytes_per_pixel` bytes per row). Reuses the camera's buffers.
+    pub fn render(
+        &mut self,
+        frame_index: usize,
+        camera_index: usize,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        let r = self
+            .renderers
+            .get_mut(camera_index)
+            .ok_or(SimError::NoSuchCamera {
+                index: camera_index,
+                count: self.ctx.cameras.len(),
+            })?;
+        self.ctx.render_frame(r, frame_index, camera_index, out)
+    }
+
+    /// Renders the reference frame of camera `camera_index`: every rod at its reference pose,
+    /// no hands, no ball, no motion (with sensor noise).
+    pub fn render_reference(
+        &mut self,
+        camera_index: usize,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        let r = self
+            .renderers
+            .get_mut(camera_index)
+            .ok_or(SimError::NoSuchCamera {
+                index: camera_index,
+                count: self.ctx.cameras.len(),
+            })?;
+        self.ctx.render_reference(r, camera_index, out)
+    }
+
+    /// Ground truth of every rod for frame `frame_index` seen by camera `camera_index`; values
+    /// at the middle of the exposure, timestamp = the frame's trigger time.
+    pub fn truth(
+        &self,
+        frame_index: usize,
+        camera_index: usize,
+    ) -> Result<Vec<TruthRow>, SimError> {
+        self.ctx.truth(frame_index, camera_index)
+    }
+
+    /// Projects world `y_mm` on rod `rod`'s axis into camera `camera_index` (pixel, with
+    /// distortion); `None` if behind the camera.
+    pub fn project_rod_axis(
+        &self,
+        camera_index: usize,
+        rod: usize,
+        y_mm: f64,
+    ) -> Result<Option<(f64, f64)>, SimError> {
+        let cam = self.ctx.camera(camera_index)?;
+        let r = self.ctx.rod(rod)?;
+        Ok(cam.camera.project([r.x_mm, y_mm, r.z_mm]))
+    }
+
+    /// Status of rod `rod`'s marker in camera `camera_index` for a given world state:
+    /// `Ok` (wholly visible), `OutOfView` or `Occluded`.
+    pub fn marker_status(
+        &self,
+        camera_index: usize,
+        rod: usize,
+        state: &WorldState,
+    ) -> Result<Status, SimError> {
+        self.ctx.camera(camera_index)?;
+        self.ctx.rod(rod)?;
+        let g = WorldGeom::build(&self.ctx.scene, state, 0.0);
+        Ok(self.ctx.marker_status(camera_index, rod, state, &g))
+    }
+
+    /// Calibration inputs (SPEC section 5) for camera `camera_index` with default options;
+    /// `seed` drives the click errors.
+    pub fn calibration_inputs(
+        &self,
+        camera_index: usize,
+        seed: u64,
+    ) -> Result<CalibrationInputs, SimError> {
+        self.calibration_inputs_with(camera_index, seed, &CalibOptions::default())
+    }
+
+    /// Calibration inputs with explicit options.
+    pub fn calibration_inputs_with(
+        &self,
+        camera_index: usize,
+        seed: u64,
+        opts: &CalibOptions,
+    ) -> Result<CalibrationInputs, SimError> {
+        self.ctx.calibration_inputs(camera_index, seed, opts)
+    }
+}
+
+impl Ctx {
+    pub fn camera(&self, i: usize) -> Result<&SimCamera, SimError> {
+        self.cameras.get(i).ok_or(SimError::NoSuchCamera {
+            index: i,
+            count: self.cameras.len(),
+        })
+    }
+
+    pub fn rod(&self, i: usize) -> Result<&crate::scene::RodConfig, SimError> {
+        self.scene.rods.get(i).ok_or(SimError::NoSuchRod {
+            index: i,
+            count: self.scene.rods.len(),
+        })
+    }
+
+    fn exposure_s(&self, cam: usize) -> f64 {
+        self.cameras[cam].exposure_us * 1e-6
+    }
+
+    /// The geometry at the time samples of frame `frame_index` for camera `cam`.
+    fn geoms_for(&self, frame_index: usize, cam: usize) -> Vec<WorldGeom> {
+        let t0 = frame_index as f64 / self.scenario.fps;
+        let exp = self.exposure_s(cam);
+        match self.mode {
+            RenderMode::Fast => {
+                let st = WorldState::at(&self.scene, &self.scenario, t0 + 0.5 * exp);
+                vec![WorldGeom::build(&self.scene, &st, exp)]
+            }
+            RenderMode::Quality => {
+                let n = crate::render::QSUB * crate::render::QSUB;
+                (0..n)
+                    .map(|k| {
+                        let t = t0 + exp * (k as f64 + 0.5) / n as f64;
+                        let st = WorldState::at(&self.scene, &self.scenario, t);
+                        WorldGeom::build(&self.scene, &st, 0.0)
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    pub fn render_frame(
+        &self,
+        r: &mut CameraRenderer,
+        frame_index: usize,
+        cam: usize,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        let c = self.camera(cam)?;
+        let need = c.frame_bytes();
+        if out.len() < need {
+            return Err(SimError::BufferSize {
+                expected: need,
+                got: out.len(),
+            });
+        }
+        let t0 = frame_index as f64 / self.scenario.fps;
+        let tm = t0 + 0.5 * self.exposure_s(cam);
+        let geoms = self.geoms_for(frame_index, cam);
+        let b = self.scenario.brightness.value(tm) as f32;
+        let g = self.scenario.glare.value(tm).max(0.0) as f32;
+        let seed = hash_words(&[self.seed, frame_index as u64, cam as u64]);
+        r.render(
+            &geoms,
+            &self.shader,
+            self.mode,
+            b,
+            g,
+            &self.noise,
+            seed,
+            &mut out[..need],
+        );
+        Ok(self.meta(cam, frame_index as u64, t0))
+    }
+
+    pub fn render_reference(
+        &self,
+        r: &mut CameraRenderer,
+        cam: usize,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        let c = self.camera(cam)?;
+        let need = c.frame_bytes();
+        if out.len() < need {
+            return Err(SimError::BufferSize {
+                expected: need,
+                got: out.len(),
+            });
+        }
+        let st = WorldState::posed(&self.reference);
+        let g = WorldGeom::build(&self.scene, &st, 0.0);
+        let n = match self.mode {
+            RenderMode::Fast => 1,
+            RenderMode::Quality => crate::render::QSUB * crate::render::QSUB,
+        };
+        let geoms = vec![g; n];
+        let b = self.scenario.brightness.value(0.0) as f32;
+        let gl = self.scenario.glare.value(0.0).max(0.0) as f32;
+        let seed = hash_words(&[self.seed, u64::MAX, cam as u64]);
+        r.render(
+            &geoms,
+            &self.shader,
+            self.mode,
+            b,
+            gl,
+            &self.noise,
+            seed,
+            &mut out[..need],
+        );
+        Ok(self.meta(cam, 0, 0.0))
+    }
+
+    fn meta(&self, cam: usize, frame_id: u64, t: f64) -> FrameMeta {
+        let c = &self.cameras[cam];
+        FrameMeta {
+            frame_id,
+            timestamp_s: t,
+            width: c.camera.width,
+            height: c.camera.height,
+            stride: c.camera.width * c.pixel_format.bytes_per_pixel(),
+            format: c.pixel_format,
+        }
+    }
+
+    pub fn truth(&self, frame_index: usize, cam: usize) -> Result<Vec<TruthRow>, SimError> {
+        self.camera(cam)?;
+        let t0 = frame_index as f64 / self.scenario.fps;
+        let tm = t0 + 0.5 * self.exposure_s(cam);
+        let st = WorldState::at(&self.scene, &self.scenario, tm);
+        let g = WorldGeom::build(&self.scene, &st, 0.0);
+        Ok((0..self.scene.rods.len())
+            .map(|i| {
+                let p = st.rods[i];
+                let status = self.marker_status(cam, i, &st, &g);
+                TruthRow {
+                    m: Measurement {
+                        frame: frame_index as u64,
+                        timestamp_s: t0,
+                        camera: CameraId::Camera(cam as u32),
+                        rod: i as u32,
+                        position_mm: p.position_mm,
+                        angle_rad: p.angle_rad.rem_euclid(TAU),
+                        angle_unwrapped_rad: p.angle_rad,
+                        velocity_mm_s: p.velocity_mm_s,
+                        angular_velocity_rad_s: p.angular_velocity_rad_s,
+                        quality: 1.0,
+                        status,
+                    }
+                    .sanitized(),
+                    visible: status == Status::Ok,
+                }
+            })
+            .collect())
+    }
+
+    /// Ray-casts points on the camera-facing half of the marker.
+    pub fn marker_status(&self, cam: usize, rod: usize, st: &WorldState, g: &WorldGeom) -> Status {
+        let c = &self.cameras[cam];
+        let rc = &self.scene.rods[rod];
+        let len = self.scene.marker_len_mm();
+        let o = c.camera.pose.centre_world();
+        let (w, h) = (c.camera.width as f64, c.camera.height as f64);
+        let pos = st.rods[rod].position_mm;
+        let mut cands: Vec<Obj> = Vec::new();
+        for (i, r) in g.rods.iter().enumerate() {
+            if i != rod {
+                cands.push(Obj::Rod(i as u16));
+            }
+            for k in 0..r.figs.len() {
+                cands.push(Obj::Figure(i as u16, k as u16));
+            }
+        }
+        for k in 0..g.hand_boxes.len() {
+            cands.push(Obj::Hand(k as u16));
+        }
+        if g.ball.is_some() {
+            cands.push(Obj::Ball);
+        }
+        let of: V3 = o.map(|v| v as f32);
+        let mut occluded = false;
+        for fu in VIS_U {
+            let y = rc.marker_y(fu * len, pos);
+            let gc = (o[0] - rc.x_mm).atan2(o[2] - rc.z_mm);
+            for da in VIS_ANGLE {
+                let a = gc + da;
+                let p = [
+                    rc.x_mm + rc.radius_mm() * a.sin(),
+                    y,
+                    rc.z_mm + rc.radius_mm() * a.cos(),
+                ];
+                match c.camera.project(p) {
+                    Some((u, v)) if u >= 1.0 && v >= 1.0 && u <= w - 2.0 && v <= h - 2.0 => {}
+                    _ => return Status::OutOfView,
+                }
+                if !occluded {
+                    let dv = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+                    let dist = (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt();
+                    let d: V3 = dv.map(|v| (v / dist) as f32);
+                    let hit = self
+                        .shader
+                        .trace(g, &cands, of, d, 0.0, (dist - 0.5) as f32, None);
+                    if hit.is_some() {
+                        occluded = true;
+                    }
+                }
+            }
+        }
+        if occluded {
+            Status::Occluded
+        } else {
+            Status::Ok
+        }
+    }
+
+    pub fn calibration_inputs(
+        &self,
+        cam: usize,
+        seed: u64,
+        opts: &CalibOptions,
+    ) -> Result<CalibrationInputs, SimError> {
+        let c = self.camera(cam)?;
+        let st = WorldState::posed(&self.reference);
+        let g = WorldGeom::build(&self.scene, &st, 0.0);
+        let mut rng = Rng::new(hash_words(&[seed, cam as u64, 0xCA11B]));
+        let len = self.scene.marker_len_mm();
+        let npts = opts.points_per_rod.clamp(3, 5);
+        let mut rods = Vec::new();
+        for (i, rc) in self.scene.rods.iter().enumerate() {
+            if self.marker_status(cam, i, &st, &g) != Status::Ok {
+                continue;
+            }
+            let h = rc.half_travel_mm();
+            let ys = [
+                rc.marker_y(0.0, -h),
+                rc.marker_y(len, -h),
+                rc.marker_y(0.0, h),
+                rc.marker_y(len, h),
+            ];
+            let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = ys.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let mut pts = Vec::new();
+            for k in 0..npts {
+                let f = 0.05 + 0.9 * k as f64 / (npts - 1) as f64;
+                let y = lo + f * (hi - lo);
+                if let Some((u, v)) = c.camera.project([rc.x_mm, y, rc.z_mm]) {
+                    if u >= 0.0
+                        && v >= 0.0
+                        && u <= c.camera.width as f64 - 1.0
+                        && v <= c.camera.height as f64 - 1.0
+                    {
+                        pts.push([
+                            u + opts.click_noise_px * rng.gaussian(),
+                            v + opts.click_noise_px * rng.gaussian(),
+                        ]);
+                    }
+                }
+            }
+            if pts.len() < 3 {
+                continue;
+            }
+            let (rp, ra) = self.reference[i];
+            rods.push(RodInputs {
+                rod: i as u32,
+                path_points_px: pts,
+                travel_mm: [-h, h],
+                reference: ReferencePose {
+                    frame: 0,
+                    position_mm: rp,
+                    angle_rad: ra,
+                },
+                marker: self.scene.marker_spec_for(i),
+            });
+        }
+        let k = &c.camera.intrinsics;
+        Ok(CalibrationInputs {
+            camera_name: c.name.clone(),
+            image_size: ImageSize {
+                width: c.camera.width,
+                height: c.camera.height,
+            },
+            pixel_format: c.pixel_format.name().to_string(),
+            opencv_model_optional: opts.include_opencv_model.then(|| OpencvModel {
+                camera_matrix: k.camera_matrix(),
+                dist_coeffs: k.dist_coeffs().to_vec(),
+            }),
+            reference_frames: ReferenceFrames {
+                dir: format!("{}_ref", c.name),
+                reference_frame: 0,
+            },
+            fps: Some(self.scenario.fps),
+            rods,
+        })
+    }
+}
