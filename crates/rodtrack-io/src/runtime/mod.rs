@@ -199,6 +199,7 @@ pub struct Pipeline {
     cameras: Vec<Camera>,
     fusion: Option<FusionFn>,
     stop: Arc<AtomicBool>,
+    counters: Arc<PipelineCounters>,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -284,6 +285,7 @@ impl Pipeline {
             cameras: Vec::new(),
             fusion: None,
             stop: Arc::new(AtomicBool::new(false)),
+            counters: Arc::new(PipelineCounters::default()),
         }
     }
 
@@ -303,21 +305,23 @@ impl Pipeline {
         self.stop.clone()
     }
 
-    /// Runs until every source ends or the stop flag is set; writes every frame set to `sink`
-    /// and flushes it. Blocks the calling thread.
-    pub fn run(self, sink: &mut dyn MeasurementSink) -> Result<PipelineReport, IoError> {
-        self.run_with_counters(sink, Arc::new(PipelineCounters::default()))
-            .map(|(r, _)| r)
+    /// Live counters for this pipeline's cameras (one [`CameraCounters`] per camera added so
+    /// far; call after the last `add_camera`). Read them from another thread while it runs.
+    pub fn counters(&mut self) -> Arc<PipelineCounters> {
+        let n = self.cameras.len();
+        if self.counters.cameras.len() != n {
+            self.counters = Arc::new(PipelineCounters {
+                cameras: (0..n).map(|_| CameraCounters::default()).collect(),
+                ..Default::default()
+            });
+        }
+        self.counters.clone()
     }
 
-    /// Like [`Pipeline::run`], with counters created by the caller (pass an `Arc` with one
-    /// [`CameraCounters`] per camera, or an empty default: it is then filled). Returns the
-    /// counters too.
-    pub fn run_with_counters(
-        self,
-        sink: &mut dyn MeasurementSink,
-        counters: Arc<PipelineCounters>,
-    ) -> Result<(PipelineReport, Arc<PipelineCounters>), IoError> {
+    /// Runs until every source ends or the stop flag is set; writes every frame set to `sink`
+    /// and flushes it. Blocks the calling thread. Errors only on an invalid configuration;
+    /// bad frames, failed sources and sink errors are counted in the report.
+    pub fn run(mut self, sink: &mut dyn MeasurementSink) -> Result<PipelineReport, IoError> {
         let n = self.cameras.len();
         if n == 0 {
             return Err(IoError::Config("no cameras".into()));
@@ -329,14 +333,7 @@ impl Pipeline {
                 )));
             }
         }
-        let counters = if counters.cameras.len() == n {
-            counters
-        } else {
-            Arc::new(PipelineCounters {
-                cameras: (0..n).map(|_| CameraCounters::default()).collect(),
-                ..Default::default()
-            })
-        };
+        let counters = self.counters();
         let started = Instant::now();
         let depth = self.config.queue_depth.max(1);
         let (group_tx, group_rx) = bounded::<ToGroup>(256 * n);
@@ -577,7 +574,7 @@ impl Pipeline {
             elapsed: started.elapsed(),
             stopped,
         };
-        Ok((report, counters))
+        Ok(report)
     }
 }
 

@@ -1,0 +1,420 @@
+//! The pipeline with in-test frame sources.
+#![allow(clippy::unwrap_used, missing_docs)]
+
+use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
+use rodtrack_io::runtime::{Grouping, Mode, Pipeline, PipelineConfig, ProcessFn};
+use rodtrack_io::{
+    read_measurements_csv, CsvSink, FrameBuffer, FrameSource, IoError, MeasurementSink, SourceInfo,
+    Timestamp,
+};
+use std::collections::HashSet;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+/// Generates 8x6 mono8 frames filled with `frame_id % 256`.
+struct Fake {
+    ids: Box<dyn Iterator<Item = u64> + Send>,
+    delay: Duration,
+    bad: HashSet<u64>,
+    /// Added to `id * 5 ms` for the timestamp.
+    ts_offset_ns: u64,
+    /// Sleep this long before delivering frame `.0`.
+    stall: Option<(u64, Duration)>,
+}
+
+impl Fake {
+    fn new(ids: impl Iterator<Item = u64> + Send + 'static) -> Self {
+        Fake {
+            ids: Box::new(ids),
+            delay: Duration::ZERO,
+            bad: HashSet::new(),
+            ts_offset_ns: 0,
+            stall: None,
+        }
+    }
+}
+
+impl FrameSource for Fake {
+    fn info(&self) -> SourceInfo {
+        SourceInfo {
+            name: "fake".into(),
+            width: 8,
+            height: 6,
+            format: PixelFormat::Mono8,
+            fps: Some(200.0),
+            frame_count: None,
+            live: true,
+        }
+    }
+    fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, IoError> {
+        let Some(id) = self.ids.next() else {
+            return Ok(None);
+        };
+        if let Some((at, d)) = self.stall {
+            if at == id {
+                std::thread::sleep(d);
+            }
+        }
+        std::thread::sleep(self.delay);
+        buf.meta.frame_id = id;
+        buf.meta.timestamp_ns = Timestamp(id * 5_000_000 + self.ts_offset_ns);
+        if self.bad.contains(&id) {
+            return Err(IoError::Decode {
+                path: format!("fake{id}.png").into(),
+                reason: "simulated".into(),
+            });
+        }
+        buf.reshape_packed(8, 6, PixelFormat::Mono8);
+        buf.data.fill((id % 256) as u8);
+        Ok(Some(()))
+    }
+}
+
+/// Two rows per frame (rods 0 and 1) with the pixel value as position; one `bad_frame` row
+/// for a bad frame. Sleeps `work` per frame.
+fn tracker(work: Duration) -> ProcessFn {
+    Box::new(move |meta, view, out| {
+        std::thread::sleep(work);
+        let ts = meta.timestamp_ns.as_secs_f64();
+        let cam = CameraId::Camera(meta.camera);
+        match view {
+            Ok(v) => {
+                for rod in 0..2 {
+                    let mut m = Measurement::empty(meta.frame_id, ts, cam, rod, Status::Ok);
+                    m.position_mm = f64::from(v.luma_node(3, 3));
+                    m.quality = 1.0;
+                    out.push(m);
+                }
+            }
+            Err(_) => out.push(Measurement::empty(
+                meta.frame_id,
+                ts,
+                cam,
+                0,
+                Status::BadFrame,
+            )),
+        }
+    })
+}
+
+/// Keeps each `write` call's rows.
+#[derive(Default)]
+struct Sets(Vec<Vec<Measurement>>);
+impl MeasurementSink for Sets {
+    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        self.0.push(rows.to_vec());
+        Ok(())
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
+
+fn config(mode: Mode) -> PipelineConfig {
+    PipelineConfig {
+        mode,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn groups_two_cameras_by_frame_id() {
+    let mut p = Pipeline::new(config(Mode::Batch));
+    p.add_camera(Box::new(Fake::new(0..300)), tracker(Duration::ZERO));
+    p.add_camera(Box::new(Fake::new(0..300)), tracker(Duration::ZERO));
+    p.set_fusion(Box::new(|set, rows, out| {
+        assert!(set.complete);
+        assert_eq!(rows.len(), 4);
+        let mut m = rows[0];
+        m.camera = CameraId::Fused;
+        out.push(m);
+    }));
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    assert_eq!(
+        (r.sets_complete, r.sets_incomplete, r.rows_written),
+        (300, 0, 1500)
+    );
+    assert_eq!(sink.0.len(), 300);
+    for (i, set) in sink.0.iter().enumerate() {
+        assert_eq!(set.len(), 5);
+        let cams: Vec<CameraId> = set.iter().map(|m| m.camera).collect();
+        assert_eq!(
+            cams,
+            [0, 0, 1, 1]
+                .map(CameraId::Camera)
+                .into_iter()
+                .chain([CameraId::Fused])
+                .collect::<Vec<_>>()
+        );
+        for m in set {
+            assert_eq!(
+                m.frame, i as u64,
+                "sets in frame order, rows of their own frame"
+            );
+            assert_eq!(
+                m.position_mm,
+                (i % 256) as f64,
+                "the view holds that frame's pixels"
+            );
+        }
+    }
+    for c in &r.cameras {
+        assert_eq!(
+            (
+                c.frames_read,
+                c.frames_processed,
+                c.frames_dropped,
+                c.bad_frames
+            ),
+            (300, 300, 0, 0)
+        );
+        assert!(
+            c.buffers_allocated <= PipelineConfig::default().queue_depth + 3,
+            "{c:?}"
+        );
+    }
+    assert_eq!(r.latency.count, 600);
+    assert!(r.latency.p50 <= r.latency.p99 && r.latency.p99 <= r.latency.max);
+}
+
+#[test]
+fn a_missing_frame_is_reported_without_waiting() {
+    let mut cfg = config(Mode::Batch);
+    cfg.group_timeout = Duration::from_secs(60);
+    let mut p = Pipeline::new(cfg);
+    p.add_camera(Box::new(Fake::new(0..20)), tracker(Duration::ZERO));
+    p.add_camera(
+        Box::new(Fake::new((0..20).filter(|i| *i != 5))),
+        tracker(Duration::ZERO),
+    );
+    let mut sink = Sets::default();
+    let t = Instant::now();
+    let r = p.run(&mut sink).unwrap();
+    assert!(
+        t.elapsed() < Duration::from_secs(5),
+        "waited for the group timeout"
+    );
+    assert_eq!((r.sets_complete, r.sets_incomplete), (19, 1));
+    assert_eq!(
+        (r.cameras[0].missing_in_sets, r.cameras[1].missing_in_sets),
+        (0, 1)
+    );
+    assert_eq!(sink.0.len(), 20);
+    let set5 = &sink.0[5];
+    assert!(set5
+        .iter()
+        .all(|m| m.frame == 5 && m.camera == CameraId::Camera(0)));
+    assert_eq!(set5.len(), 2);
+}
+
+#[test]
+fn a_stalled_camera_is_not_waited_for_beyond_the_timeout() {
+    let mut cfg = config(Mode::Live);
+    cfg.group_timeout = Duration::from_millis(50);
+    let mut p = Pipeline::new(cfg);
+    let mut a = Fake::new(0..40);
+    a.delay = Duration::from_millis(2);
+    let mut b = Fake::new(0..40);
+    b.delay = Duration::from_millis(2);
+    b.stall = Some((10, Duration::from_millis(700)));
+    p.add_camera(Box::new(a), tracker(Duration::ZERO));
+    p.add_camera(Box::new(b), tracker(Duration::ZERO));
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    // Camera 0's frames 10..39 went out after about the timeout, not after the stall.
+    let cam0_frames: usize = sink
+        .0
+        .iter()
+        .flatten()
+        .filter(|m| m.camera == CameraId::Camera(0))
+        .count();
+    assert_eq!(cam0_frames, 80);
+    assert!(r.sets_incomplete >= 1, "{r:?}");
+    assert!(r.cameras[1].missing_in_sets >= 1);
+    // Late frames of camera 1 are still written (on their own), nothing is lost.
+    let cam1: usize = sink
+        .0
+        .iter()
+        .flatten()
+        .filter(|m| m.camera == CameraId::Camera(1))
+        .count();
+    assert_eq!(cam1 as u64, 2 * r.cameras[1].frames_processed);
+    assert_eq!(
+        r.rows_written,
+        2 * (r.cameras[0].frames_processed + r.cameras[1].frames_processed)
+    );
+    // Frame ids never go backwards within a camera.
+    for cam in [0, 1] {
+        let ids: Vec<u64> = sink
+            .0
+            .iter()
+            .flatten()
+            .filter(|m| m.camera == CameraId::Camera(cam) && m.rod == 0)
+            .map(|m| m.frame)
+            .collect();
+        assert!(ids.windows(2).all(|w| w[0] < w[1]), "camera {cam}: {ids:?}");
+    }
+    // The stall lasted 700 ms; no frame waited that long (timeout 50 ms).
+    assert!(r.latency.max < Duration::from_millis(400), "{}", r.latency);
+}
+
+#[test]
+fn a_slow_consumer_makes_live_capture_drop_and_batch_block() {
+    for mode in [Mode::Live, Mode::Batch] {
+        let mut cfg = config(mode);
+        cfg.queue_depth = 2;
+        let mut p = Pipeline::new(cfg);
+        let mut src = Fake::new(0..100);
+        src.delay = Duration::from_micros(200);
+        p.add_camera(Box::new(src), tracker(Duration::from_millis(3)));
+        let mut sink = Sets::default();
+        let r = p.run(&mut sink).unwrap();
+        let c = &r.cameras[0];
+        assert_eq!(c.frames_read, 100);
+        assert_eq!(
+            c.frames_processed + c.frames_dropped,
+            100,
+            "{mode:?}: {c:?}"
+        );
+        assert_eq!(r.rows_written, 2 * c.frames_processed);
+        assert_eq!(sink.0.len() as u64, c.frames_processed);
+        match mode {
+            Mode::Batch => assert_eq!(c.frames_dropped, 0),
+            _ => assert!(c.frames_dropped > 20, "{c:?}"),
+        }
+        assert_eq!(r.sets_incomplete, 0, "one camera: every set is complete");
+    }
+}
+
+#[test]
+fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
+    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut src = Fake::new(0..10);
+    src.bad = [3, 4].into_iter().collect();
+    p.add_camera(Box::new(src), tracker(Duration::ZERO));
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    let c = &r.cameras[0];
+    assert_eq!(
+        (c.frames_read, c.frames_processed, c.bad_frames),
+        (10, 10, 2)
+    );
+    assert!(c.errors[0].contains("fake3.png"), "{:?}", c.errors);
+    assert_eq!(sink.0[3][0].status, Status::BadFrame);
+    assert_eq!(sink.0[3][0].frame, 3);
+    assert_eq!(sink.0[9].len(), 2);
+}
+
+#[test]
+fn stop_ends_cleanly_and_loses_no_rows() {
+    let dir = std::env::temp_dir().join(format!("rodtrack-io-runtime-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("stop.csv");
+    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut a = Fake::new(0..);
+    a.delay = Duration::from_millis(1);
+    let mut b = Fake::new(0..);
+    b.delay = Duration::from_millis(1);
+    p.add_camera(Box::new(a), tracker(Duration::from_micros(500)));
+    p.add_camera(Box::new(b), tracker(Duration::from_micros(500)));
+    let stop = p.stop_flag();
+    let live = p.counters();
+    let watcher = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(300));
+        let seen = live.cameras[0].frames_read.load(Ordering::Relaxed);
+        stop.store(true, Ordering::Relaxed);
+        seen
+    });
+    let mut sink = CsvSink::create(&path).unwrap();
+    sink.set_flush_each_write(false);
+    let t = Instant::now();
+    let r = p.run(&mut sink).unwrap();
+    assert!(t.elapsed() < Duration::from_secs(3));
+    assert!(r.stopped);
+    let seen_live = watcher.join().unwrap();
+    assert!(seen_live > 0 && seen_live <= r.cameras[0].frames_read);
+    let processed: u64 = r.cameras.iter().map(|c| c.frames_processed).sum();
+    assert!(processed > 20, "{r:?}");
+    for c in &r.cameras {
+        assert_eq!(
+            c.frames_read,
+            c.frames_processed + c.frames_dropped,
+            "{c:?}"
+        );
+    }
+    assert_eq!(r.rows_written, 2 * processed);
+    // Flushed by the pipeline, before the sink is dropped.
+    let on_disk = read_measurements_csv(&path).unwrap();
+    assert_eq!(on_disk.len() as u64, r.rows_written);
+    drop(sink);
+}
+
+#[test]
+fn paced_mode_follows_the_timestamps() {
+    for (speed, min_ms) in [(1.0, 90u64), (2.0, 45)] {
+        let mut p = Pipeline::new(config(Mode::Paced { speed }));
+        p.add_camera(Box::new(Fake::new(0..20)), tracker(Duration::ZERO));
+        let mut sink = Sets::default();
+        let r = p.run(&mut sink).unwrap();
+        // 20 frames 5 ms apart: the last is released 95 ms (at 1x) after the first.
+        assert!(
+            r.elapsed >= Duration::from_millis(min_ms),
+            "{speed}: {:?}",
+            r.elapsed
+        );
+        assert!(r.elapsed < Duration::from_millis(min_ms * 4 + 200));
+        assert_eq!(r.cameras[0].frames_processed, 20);
+    }
+    let bad = Pipeline::new(config(Mode::Paced { speed: 0.0 }));
+    assert!(
+        bad.run(&mut Sets::default()).is_err(),
+        "no cameras / bad speed"
+    );
+}
+
+#[test]
+fn groups_by_timestamp_window() {
+    let mut cfg = config(Mode::Batch);
+    cfg.grouping = Grouping::Timestamp {
+        window_ns: 1_000_000,
+    };
+    let mut p = Pipeline::new(cfg);
+    p.add_camera(Box::new(Fake::new(0..30)), tracker(Duration::ZERO));
+    // Other counter, clock 0.3 ms later.
+    let mut b = Fake::new(0..30);
+    b.ts_offset_ns = 300_000;
+    p.add_camera(Box::new(b), tracker(Duration::ZERO));
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    assert_eq!((r.sets_complete, r.sets_incomplete), (30, 0));
+    for set in &sink.0 {
+        assert_eq!(set.len(), 4);
+        assert!(set.iter().all(|m| m.frame == set[0].frame));
+    }
+}
+
+#[test]
+fn a_panicking_tracker_ends_its_camera_but_rows_are_kept() {
+    let mut p = Pipeline::new(config(Mode::Batch));
+    p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
+    let mut inner = tracker(Duration::ZERO);
+    p.add_camera(
+        Box::new(Fake::new(0..50)),
+        Box::new(move |meta, view, out| {
+            if meta.frame_id == 20 {
+                panic!("tracker bug");
+            }
+            inner(meta, view, out)
+        }),
+    );
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    assert_eq!(r.cameras[0].frames_processed, 50);
+    assert!(
+        r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
+        "{r:?}"
+    );
+    assert_eq!(sink.0.len(), 50);
+    assert_eq!(r.rows_written, 100 + 40);
+}
