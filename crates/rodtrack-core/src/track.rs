@@ -57,6 +57,12 @@ pub struct RodResult {
     pub theta_steps: f64,
     /// Diagnostics: the correlation peak.
     pub ncc: f64,
+    /// Diagnostics: why the status is not `ok` (empty when it is).
+    pub reason: &'static str,
+    /// Diagnostics: phase amplitude over the expected one.
+    pub amp_ratio: f64,
+    /// Diagnostics: spread of the barcode's edges around their fit, mm.
+    pub edge_std_mm: f64,
 }
 
 /// Candidate search margin beyond the travel, mm.
@@ -338,6 +344,7 @@ impl RodTracker {
             gray_step: alpha,
             theta_steps: theta,
             ncc: c,
+            ..Default::default()
         }
     }
 
@@ -384,6 +391,7 @@ impl RodTracker {
                 status: Status::NotFound,
                 quality: ncc.max(0.0) * 0.5,
                 ncc,
+                reason: "weak barcode correlation",
                 ..Default::default()
             };
         }
@@ -409,6 +417,7 @@ impl RodTracker {
             return RodResult {
                 status: Status::NotFound,
                 ncc,
+                reason: "no contrast",
                 ..Default::default()
             };
         }
@@ -460,6 +469,7 @@ impl RodTracker {
                 status: Status::Occluded,
                 ncc,
                 quality: 0.2,
+                reason: "too few barcode edges",
                 ..Default::default()
             };
         }
@@ -548,14 +558,22 @@ impl RodTracker {
         };
         let near_group_edge = frac4 < 0.75 || frac4 > 3.25;
         let mut status = Status::Ok;
-        if amp_ratio < 0.25 || edge_std > 0.2 * cell {
+        let mut reason = "";
+        if amp_ratio < 0.25 {
             status = Status::Occluded;
+            reason = "weak stripes over bit space 0";
+        }
+        if edge_std > 0.2 * cell {
+            status = Status::Occluded;
+            reason = "barcode edges inconsistent";
         }
         if min_high_margin < 0.35 && !near_group_edge {
             status = Status::Occluded;
+            reason = "a high Gray bit is ambiguous";
         }
         if code_dist > 1.5 {
             status = Status::Occluded;
+            reason = "Gray code and phase disagree";
         }
         let q_ncc = ((ncc - 0.5) / 0.45).clamp(0.0, 1.0);
         let q_amp = amp_ratio.clamp(0.0, 1.0);
@@ -570,6 +588,9 @@ impl RodTracker {
             gray_step: alpha,
             theta_steps: theta,
             ncc,
+            reason,
+            amp_ratio,
+            edge_std_mm: edge_std,
         }
     }
 }

@@ -2,7 +2,9 @@
 
 mod calibrate;
 mod calibration_io;
+mod demo;
 mod score;
+mod simulate;
 mod track;
 
 use anyhow::Result;
@@ -18,6 +20,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run the whole job on the built-in simulator: simulate, calibrate, track, score.
+    Demo(demo::Args),
+    /// Render a simulated recording with ground truth and calibration inputs.
+    Simulate(simulate::Args),
     /// Calibrate from calibration-inputs files (one JSON per camera) into a calibration file.
     Calibrate(calibrate::Args),
     /// Track rods in recordings or live sources and write measurements.
@@ -29,6 +35,8 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     let result: Result<()> = match cli.command {
+        Command::Demo(a) => demo::run(a),
+        Command::Simulate(a) => simulate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),

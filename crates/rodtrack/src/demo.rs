@@ -1,0 +1,181 @@
+//! `rodtrack demo`: the whole job on the built-in simulator, with nothing to set up.
+
+use crate::score::{print_table, score};
+use crate::simulate::build;
+use anyhow::{Context, Result};
+use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
+use rodtrack_core::CameraIntrinsics;
+use rodtrack_core::{CameraPipeline, FrameView, Measurement, Mode, Status};
+use std::io::{IsTerminal, Write};
+use std::time::Instant;
+
+/// Arguments of `rodtrack demo`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenario to run.
+    #[arg(long, default_value = "gameplay")]
+    pub scenario: String,
+    /// Number of frames per camera (200 fps: 1000 frames are 5 s of play).
+    #[arg(long, default_value_t = 1000)]
+    pub frames: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+}
+
+/// Runs the demo.
+pub fn run(args: Args) -> Result<()> {
+    let t_start = Instant::now();
+    println!(
+        "rodtrack demo: two simulated 1440x1080 Bayer cameras over an 8-rod table, scenario `{}`",
+        args.scenario
+    );
+    let mut sim = build(&args.scenario, Some(args.frames), args.seed, false)?;
+    let ncam = sim.cameras().len();
+    // 1. Calibrate every camera from the inputs an operator would give (clicked points with
+    // about 1 px error) and a reference frame.
+    let mut cals = Vec::new();
+    for c in 0..ncam {
+        let inputs = sim.calibration_inputs(c, args.seed)?;
+        let bytes = sim.frame_bytes(c)?;
+        let mut buf = vec![0u8; bytes];
+        let meta = sim.render_reference(c, &mut buf)?;
+        let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
+        let intr = match &inputs.opencv_model_optional {
+            Some(m) => Some(CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs)?),
+            None => None,
+        };
+        let mut rods = Vec::new();
+        for r in &inputs.rods {
+            rods.push(
+                calibrate_rod(r, &view, intr.as_ref())
+                    .with_context(|| format!("camera {c}: calibrating rod {}", r.rod))?,
+            );
+        }
+        println!(
+            "calibrated camera {c}: rods {:?}",
+            rods.iter().map(|r| r.rod).collect::<Vec<_>>()
+        );
+        cals.push(CameraCalibration {
+            name: inputs.camera_name.clone(),
+            index: c as u32,
+            image_width: meta.width,
+            image_height: meta.height,
+            pixel_format: meta.format.name().to_string(),
+            fps: inputs.fps.unwrap_or(200.0),
+            opencv_model: inputs.opencv_model_optional.clone(),
+            rods,
+        });
+    }
+    // 2. Track every frame in both modes: rodtrack's and the paper's, on the same frames.
+    let mut pipes: Vec<CameraPipeline> = cals
+        .iter()
+        .map(|c| CameraPipeline::new(c, Mode::Enhanced))
+        .collect::<Result<_, _>>()?;
+    let mut paper: Vec<Option<CameraPipeline>> = cals
+        .iter()
+        .map(|c| CameraPipeline::new(c, Mode::Paper).ok())
+        .collect();
+    let mut bufs: Vec<Vec<u8>> = (0..ncam)
+        .map(|c| sim.frame_bytes(c).map(|b| vec![0u8; b]))
+        .collect::<Result<_, _>>()?;
+    let mut rows: Vec<Measurement> = Vec::new();
+    let mut all: Vec<(Measurement, Option<bool>)> = Vec::new();
+    let mut all_paper: Vec<(Measurement, Option<bool>)> = Vec::new();
+    let mut truth: Vec<(Measurement, Option<bool>)> = Vec::new();
+    let mut proc_us: Vec<f64> = Vec::new();
+    let mut render_s = 0.0;
+    let tty = std::io::stdout().is_terminal();
+    let mut last_draw = Instant::now();
+    let t_loop = Instant::now();
+    let n = sim.frame_count();
+    for f in 0..n {
+        rows.clear();
+        for c in 0..ncam {
+            let t0 = Instant::now();
+            let meta = sim.render(f, c, &mut bufs[c])?;
+            render_s += t0.elapsed().as_secs_f64();
+            let view = FrameView::new(&bufs[c], meta.width, meta.height, meta.stride, meta.format)?;
+            let t1 = Instant::now();
+            pipes[c].process(&view, meta.frame_id, meta.timestamp_s, &mut rows)?;
+            proc_us.push(t1.elapsed().as_secs_f64() * 1e6);
+            if std::env::var_os("RODTRACK_DEBUG").is_some() && f % 50 == 0 {
+                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
+                    eprintln!(
+                        "frame {f} cam {c} rod {}: {} {} ncc {:.2} amp {:.2} edge std {:.3} step {} theta {:.2}",
+                        tr.rod(), r.status, r.reason, r.ncc, r.amp_ratio, r.edge_std_mm, r.gray_step, r.theta_steps
+                    );
+                }
+            }
+            if let Some(p) = paper[c].as_mut() {
+                let mut prow = Vec::new();
+                p.process(&view, meta.frame_id, meta.timestamp_s, &mut prow)?;
+                all_paper.extend(prow.into_iter().map(|m| (m, None)));
+            }
+            for t in sim.truth(f, c)? {
+                truth.push((t.m, Some(t.visible)));
+            }
+        }
+        all.extend(rows.iter().map(|m| (*m, None)));
+        if last_draw.elapsed().as_millis() >= 100 || f + 1 == n {
+            last_draw = Instant::now();
+            draw_table(&rows, f, n, &proc_us, t_loop.elapsed().as_secs_f64(), tty);
+        }
+    }
+    println!();
+    println!(
+        "rendered {} frames x {ncam} cameras in {:.1} s (simulator); tracking: median {:.1} us per camera frame (all rods)",
+        n,
+        render_s,
+        median(&mut proc_us)
+    );
+    println!("\naccuracy against ground truth, rodtrack (enhanced mode):");
+    print_table(&score(&truth, &all));
+    println!("\nthe paper's algorithm on the same frames (paper mode):");
+    print_table(&score(&truth, &all_paper));
+    println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn draw_table(rows: &[Measurement], f: usize, n: usize, proc_us: &[f64], elapsed_s: f64, tty: bool) {
+    let mut out = String::new();
+    if tty {
+        out.push_str("\x1b[H\x1b[2J");
+    }
+    let recent = &proc_us[proc_us.len().saturating_sub(200)..];
+    let mut r: Vec<f64> = recent.to_vec();
+    let med = median(&mut r);
+    out.push_str(&format!(
+        "frame {:>5}/{n}   {:>6.1} frame sets/s   {:>6.1} us per camera frame (median of last 200)\n",
+        f + 1,
+        (f + 1) as f64 / elapsed_s.max(1e-9),
+        med
+    ));
+    out.push_str(" cam rod  position_mm  angle_rad  turns  quality  status\n");
+    for m in rows {
+        let flag = if m.status == Status::Ok { "" } else { " <" };
+        out.push_str(&format!(
+            " {:>3} {:>3}  {:>11.2}  {:>9.3}  {:>5.1}  {:>7.2}  {}{}\n",
+            m.camera.to_string(),
+            m.rod,
+            m.position_mm,
+            m.angle_rad,
+            m.angle_unwrapped_rad / std::f64::consts::TAU,
+            m.quality,
+            m.status,
+            flag
+        ));
+    }
+    if tty || f + 1 == n {
+        print!("{out}");
+        let _ = std::io::stdout().flush();
+    }
+}
