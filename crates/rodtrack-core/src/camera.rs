@@ -42,7 +42,10 @@ impl CameraIntrinsics {
         if k[0][0] <= 0.0 || k[1][1] <= 0.0 {
             return Err(bad(
                 "camera_matrix",
-                format!("focal lengths must be positive, got fx={} fy={}", k[0][0], k[1][1]),
+                format!(
+                    "focal lengths must be positive, got fx={} fy={}",
+                    k[0][0], k[1][1]
+                ),
             ));
         }
         if k[1][0] != 0.0 || k[2][0] != 0.0 || k[2][1] != 0.0 || k[2][2] != 1.0 {
@@ -211,7 +214,10 @@ impl Camera {
         if c[2] <= 1e-9 {
             return None;
         }
-        Some(self.intrinsics.normalized_to_pixel(c[0] / c[2], c[1] / c[2]))
+        Some(
+            self.intrinsics
+                .normalized_to_pixel(c[0] / c[2], c[1] / c[2]),
+        )
     }
 
     /// The world-space ray through a pixel: (origin, unit direction).
@@ -290,7 +296,10 @@ mod tests {
         assert!((u - 720.0).abs() < 1e-9 && (v - 540.0).abs() < 1e-9);
         // +x world -> +u; +y world -> -v; 750 mm away, 1000 px focal: 75 mm -> 100 px.
         let (u, v) = cam.project([575.0, 375.0, 80.0]).unwrap();
-        assert!((u - 820.0).abs() < 1e-9 && (v - 440.0).abs() < 1e-9, "{u} {v}");
+        assert!(
+            (u - 820.0).abs() < 1e-9 && (v - 440.0).abs() < 1e-9,
+            "{u} {v}"
+        );
         let (o, d) = cam.ray(820.0, 440.0);
         let s = (80.0 - o[2]) / d[2];
         assert!((o[0] + s * d[0] - 575.0).abs() < 1e-6);
@@ -301,8 +310,9 @@ mod tests {
     fn rejects_bad_opencv_input() {
         let k = [[1000.0, 0.0, 720.0], [0.0, 1000.0, 540.0], [0.0, 0.0, 1.0]];
         assert!(CameraIntrinsics::from_opencv(k, &[0.1, 0.0, 0.0]).is_err());
-        assert!(CameraIntrinsics::from_opencv(k, &[0.1, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
-            .is_err());
+        assert!(
+            CameraIntrinsics::from_opencv(k, &[0.1, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0]).is_err()
+        );
         let mut k2 = k;
         k2[0][0] = -1.0;
         assert!(CameraIntrinsics::from_opencv(k2, &[]).is_err());

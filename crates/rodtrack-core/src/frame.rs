@@ -205,7 +205,13 @@ impl<'a> FrameView<'a> {
         height: usize,
         format: PixelFormat,
     ) -> Result<Self, CoreError> {
-        Self::new(data, width, height, width * format.bytes_per_pixel(), format)
+        Self::new(
+            data,
+            width,
+            height,
+            width * format.bytes_per_pixel(),
+            format,
+        )
     }
 
     /// Width in pixels.
@@ -256,9 +262,7 @@ impl<'a> FrameView<'a> {
         let off = j * self.stride + i * bpp;
         match kind {
             LumaKind::Mono => self.raw(off),
-            LumaKind::Rgb => {
-                (self.raw(off) + 2.0 * self.raw(off + 1) + self.raw(off + 2)) * 0.25
-            }
+            LumaKind::Rgb => (self.raw(off) + 2.0 * self.raw(off + 1) + self.raw(off + 2)) * 0.25,
             LumaKind::Bayer => {
                 let below = off + self.stride;
                 (self.raw(off) + self.raw(off + bpp) + self.raw(below) + self.raw(below + bpp))
@@ -371,7 +375,10 @@ mod tests {
         for f in PixelFormat::ALL {
             assert_eq!(PixelFormat::from_name(f.name()), Some(f));
         }
-        assert_eq!(PixelFormat::from_name("BayerRG8"), Some(PixelFormat::BayerRggb8));
+        assert_eq!(
+            PixelFormat::from_name("BayerRG8"),
+            Some(PixelFormat::BayerRggb8)
+        );
         assert_eq!(PixelFormat::from_name("yuv"), None);
     }
 }

@@ -8,15 +8,15 @@ pub mod error;
 pub mod frame;
 pub mod line;
 pub mod marker;
-pub mod signal;
-pub mod track;
 pub mod measurement;
 pub mod pipeline;
+pub mod signal;
+pub mod track;
 
 pub use camera::{Camera, CameraIntrinsics, Pose};
 pub use error::CoreError;
 pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
-pub use track::{Mode, RodResult, RodTracker};
 pub use pipeline::CameraPipeline;
+pub use track::{Mode, RodResult, RodTracker};

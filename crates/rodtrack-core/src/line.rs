@@ -186,7 +186,11 @@ impl CurveModel {
         };
         let along_x = spread(&xs) > spread(&ys);
         let (t, v) = if along_x { (&xs, &ys) } else { (&ys, &xs) };
-        let degree = if points.len() >= 5 { 3 } else { 2.min(points.len() - 1) };
+        let degree = if points.len() >= 5 {
+            3
+        } else {
+            2.min(points.len() - 1)
+        };
         let coeffs = polyfit(t, v, degree)?;
         Some(CurveModel::Poly { coeffs, along_x })
     }
@@ -336,11 +340,12 @@ pub fn solve(mut a: Vec<Vec<f64>>) -> Option<Vec<f64>> {
             return None;
         }
         a.swap(col, piv);
-        for r in 0..m {
+        let pivot_row = a[col].clone();
+        for (r, row) in a.iter_mut().enumerate() {
             if r != col {
-                let f = a[r][col] / a[col][col];
-                for c in col..=m {
-                    a[r][c] -= f * a[col][c];
+                let f = row[col] / pivot_row[col];
+                for (x, p) in row.iter_mut().zip(&pivot_row).skip(col) {
+                    *x -= f * p;
                 }
             }
         }

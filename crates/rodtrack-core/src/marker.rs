@@ -339,12 +339,22 @@ mod tests {
         let mut s = MarkerSpec::default();
         s.barcode.kernel = "1001".into();
         assert!(s.validate().unwrap_err().to_string().contains("backwards"));
-        let mut s = MarkerSpec::default();
-        s.rod_diameter_mm = f64::NAN;
-        assert!(s.validate().unwrap_err().to_string().contains("rod_diameter_mm"));
+        let s = MarkerSpec {
+            rod_diameter_mm: f64::NAN,
+            ..MarkerSpec::default()
+        };
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("rod_diameter_mm"));
         let mut s = MarkerSpec::default();
         s.gray_code.start_mm = 50.0;
-        assert!(s.validate().unwrap_err().to_string().contains("gray_code.start_mm"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("gray_code.start_mm"));
     }
 
     proptest! {
@@ -362,12 +372,38 @@ mod tests {
     #[test]
     fn paper_table_2() {
         let table = [
-            ("00000", 0), ("00001", 1), ("00011", 2), ("00010", 3), ("00110", 4), ("00111", 5),
-            ("00101", 6), ("00100", 7), ("01100", 8), ("01101", 9), ("01111", 10), ("01110", 11),
-            ("01010", 12), ("01011", 13), ("01001", 14), ("01000", 15), ("11000", 16),
-            ("11001", 17), ("11011", 18), ("11010", 19), ("11110", 20), ("11111", 21),
-            ("11101", 22), ("11100", 23), ("10100", 24), ("10101", 25), ("10111", 26),
-            ("10110", 27), ("10010", 28), ("10011", 29), ("10001", 30), ("10000", 31),
+            ("00000", 0),
+            ("00001", 1),
+            ("00011", 2),
+            ("00010", 3),
+            ("00110", 4),
+            ("00111", 5),
+            ("00101", 6),
+            ("00100", 7),
+            ("01100", 8),
+            ("01101", 9),
+            ("01111", 10),
+            ("01110", 11),
+            ("01010", 12),
+            ("01011", 13),
+            ("01001", 14),
+            ("01000", 15),
+            ("11000", 16),
+            ("11001", 17),
+            ("11011", 18),
+            ("11010", 19),
+            ("11110", 20),
+            ("11111", 21),
+            ("11101", 22),
+            ("11100", 23),
+            ("10100", 24),
+            ("10101", 25),
+            ("10111", 26),
+            ("10110", 27),
+            ("10010", 28),
+            ("10011", 29),
+            ("10001", 30),
+            ("10000", 31),
         ];
         for (code, alpha) in table {
             let c = u32::from_str_radix(code, 2).unwrap();

@@ -62,7 +62,12 @@ impl CameraPipeline {
         timestamp_s: f64,
         out: &mut Vec<Measurement>,
     ) -> Result<(), CoreError> {
-        for ((tr, turn), last) in self.rods.iter_mut().zip(&mut self.turns).zip(&mut self.last) {
+        for ((tr, turn), last) in self
+            .rods
+            .iter_mut()
+            .zip(&mut self.turns)
+            .zip(&mut self.last)
+        {
             let r = tr.process(frame)?;
             *last = r;
             let mut m = Measurement::empty(

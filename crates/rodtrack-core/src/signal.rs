@@ -67,10 +67,17 @@ pub fn hysteresis(x: &[f32], low: f32, high: f32, out: &mut [f32]) {
 /// [`ncc_cells_prefix`].
 pub fn ncc_direct(kernel: &[f32], signal: &[f32], out: &mut [f32]) {
     let n = kernel.len();
-    assert!(n > 0 && signal.len() >= n, "ncc_direct: signal shorter than kernel");
+    assert!(
+        n > 0 && signal.len() >= n,
+        "ncc_direct: signal shorter than kernel"
+    );
     assert_eq!(out.len(), signal.len() - n + 1, "ncc_direct: output length");
     let mk = kernel.iter().sum::<f32>() / n as f32;
-    let sk = kernel.iter().map(|v| (v - mk) * (v - mk)).sum::<f32>().sqrt();
+    let sk = kernel
+        .iter()
+        .map(|v| (v - mk) * (v - mk))
+        .sum::<f32>()
+        .sqrt();
     for (k, o) in out.iter_mut().enumerate() {
         let w = &signal[k..k + n];
         let ml = w.iter().sum::<f32>() / n as f32;
@@ -113,7 +120,10 @@ pub fn ncc_cells_prefix(
     let n_cells = cells.len();
     let n = n_cells * cell_len;
     let len = prefix.len() - 1;
-    assert!(n > 0 && len >= n, "ncc_cells_prefix: signal shorter than kernel");
+    assert!(
+        n > 0 && len >= n,
+        "ncc_cells_prefix: signal shorter than kernel"
+    );
     assert_eq!(out.len(), len - n + 1, "ncc_cells_prefix: output length");
     let mk = cells.iter().sum::<f32>() as f64 / n_cells as f64;
     let sk2: f64 = cells
@@ -206,7 +216,9 @@ mod tests {
         let f = -10.0f64 / 11.0;
         assert!((1.0 - f) / (1.0 + f) > 20.0);
         // Ours attenuates an alternating signal.
-        let x: Vec<f32> = (0..100).map(|i| if i % 2 == 0 { 10.0 } else { -10.0 }).collect();
+        let x: Vec<f32> = (0..100)
+            .map(|i| if i % 2 == 0 { 10.0 } else { -10.0 })
+            .collect();
         let mut y = vec![0.0; x.len()];
         iir_lowpass(&x, 10.0, &mut y);
         assert!(y[50..].iter().all(|v| v.abs() < 1.0));

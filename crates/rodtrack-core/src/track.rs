@@ -11,8 +11,8 @@ use crate::line::{Knots, LinePoint, PaperLine};
 use crate::marker::Marker;
 use crate::measurement::Status;
 use crate::signal::{
-    argmax, argmax_sq, hysteresis, ncc_cells_prefix, ncc_direct, paper_bandpass,
-    parabolic_offset, prefix_sums, PAPER_HYSTERESIS,
+    argmax, argmax_sq, hysteresis, ncc_cells_prefix, ncc_direct, paper_bandpass, parabolic_offset,
+    prefix_sums, PAPER_HYSTERESIS,
 };
 use crate::CoreError;
 use serde::{Deserialize, Serialize};
@@ -145,7 +145,11 @@ impl RodTracker {
                 .map(|i| {
                     let c = ((i as f64 + 0.5) / p.cell_px) as usize;
                     let c = c.min(marker.kernel().len() - 1);
-                    let c = if p.direction > 0 { c } else { marker.kernel().len() - 1 - c };
+                    let c = if p.direction > 0 {
+                        c
+                    } else {
+                        marker.kernel().len() - 1 - c
+                    };
                     if marker.kernel()[c] {
                         1.0
                     } else {
@@ -186,7 +190,9 @@ impl RodTracker {
         let cell_len = 4usize;
         let step = marker.cell_mm() / cell_len as f64;
         let first = calib.travel_mm[0] - SEARCH_MARGIN_MM + marker.barcode_start_mm();
-        let last = calib.travel_mm[1] + SEARCH_MARGIN_MM + marker.barcode_start_mm()
+        let last = calib.travel_mm[1]
+            + SEARCH_MARGIN_MM
+            + marker.barcode_start_mm()
             + marker.barcode_len_mm();
         let n = ((last - first) / step).ceil() as usize + 1;
         let kernel_n = marker.kernel().len() * cell_len;
@@ -195,8 +201,7 @@ impl RodTracker {
             .map(|i| {
                 let p = knots.at(first + i as f64 * step);
                 // Nearest luma node; for Bayer the node offset is applied when reading.
-                if p.x < 1.0 || p.y < 1.0 || p.x > width as f64 - 2.0 || p.y > height as f64 - 2.0
-                {
+                if p.x < 1.0 || p.y < 1.0 || p.x > width as f64 - 2.0 || p.y > height as f64 - 2.0 {
                     None
                 } else {
                     Some((p.x.round() as isize, p.y.round() as isize))
@@ -295,7 +300,12 @@ impl RodTracker {
         }
         // 2. Band-pass and hysteresis.
         paper_bandpass(&st.raw, &mut st.filtered);
-        hysteresis(&st.filtered, -PAPER_HYSTERESIS, PAPER_HYSTERESIS, &mut st.binary);
+        hysteresis(
+            &st.filtered,
+            -PAPER_HYSTERESIS,
+            PAPER_HYSTERESIS,
+            &mut st.binary,
+        );
         // 3. NCC, argmax C^2.
         ncc_direct(&st.kernel_px, &st.binary, &mut st.corr);
         let Some(pk) = argmax_sq(&st.corr) else {
@@ -367,7 +377,13 @@ impl RodTracker {
         }
         // 2. NCC with the cell kernel in O(samples x cells).
         prefix_sums(&st.coarse, &mut st.prefix, &mut st.prefix2);
-        ncc_cells_prefix(&st.cells, st.cell_len, &st.prefix, &st.prefix2, &mut st.corr);
+        ncc_cells_prefix(
+            &st.cells,
+            st.cell_len,
+            &st.prefix,
+            &st.prefix2,
+            &mut st.corr,
+        );
         for (c, ok) in st.corr.iter_mut().zip(&st.valid) {
             if !ok {
                 *c = -1.0;
@@ -473,8 +489,7 @@ impl RodTracker {
                 ..Default::default()
             };
         }
-        st.edge_offsets
-            .sort_unstable_by(|a, b| a.total_cmp(b));
+        st.edge_offsets.sort_unstable_by(|a, b| a.total_cmp(b));
         let median = st.edge_offsets[n_edges / 2];
         let (mut s1, mut sn, mut s2) = (0.0, 0usize, 0.0);
         for &o in &st.edge_offsets {
@@ -502,10 +517,7 @@ impl RodTracker {
             let mut acc = 0.0f32;
             for da in [-0.2, 0.0, 0.2] {
                 for dc in [-0.15, 0.0, 0.15] {
-                    let (x, y) = lp.offset(
-                        da * m.bit_space_mm() * lp.px_per_mm,
-                        dc * lp.radius_px,
-                    );
+                    let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
                     acc += frame.luma_bilinear(x as f32, y as f32);
                 }
             }
@@ -549,14 +561,14 @@ impl RodTracker {
             .rem_euclid(4.0);
         let steps = m.steps();
         let theta = fuse_steps(frac4, alpha, steps);
-        let angle = (theta * TAU / steps as f64 - self.calib.enhanced.angle_offset_rad)
-            .rem_euclid(TAU);
+        let angle =
+            (theta * TAU / steps as f64 - self.calib.enhanced.angle_offset_rad).rem_euclid(TAU);
         // 6. Consistency and status.
         let code_dist = {
             let d = (theta - (alpha as f64 + 0.5)).rem_euclid(steps as f64);
             d.min(steps as f64 - d)
         };
-        let near_group_edge = frac4 < 0.75 || frac4 > 3.25;
+        let near_group_edge = !(0.75..=3.25).contains(&frac4);
         let mut status = Status::Ok;
         let mut reason = "";
         if amp_ratio < 0.25 {
@@ -583,7 +595,11 @@ impl RodTracker {
         RodResult {
             position_mm: position,
             angle_rad: angle,
-            quality: if status == Status::Ok { quality } else { quality.min(0.3) },
+            quality: if status == Status::Ok {
+                quality
+            } else {
+                quality.min(0.3)
+            },
             status,
             gray_step: alpha,
             theta_steps: theta,

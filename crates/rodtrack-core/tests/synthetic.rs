@@ -70,7 +70,11 @@ fn render(s: &Setup, position_mm: f64, angle_rad: f64, noise: f64, seed: u64) ->
 fn inputs() -> RodInputs {
     RodInputs {
         rod: 3,
-        path_points_px: vec![[AXIS_X + 0.4, 80.0], [AXIS_X - 0.3, 500.0], [AXIS_X + 0.2, 1000.0]],
+        path_points_px: vec![
+            [AXIS_X + 0.4, 80.0],
+            [AXIS_X - 0.3, 500.0],
+            [AXIS_X + 0.2, 1000.0],
+        ],
         travel_mm: [-100.0, 100.0],
         reference: ReferencePose {
             frame: 0,
@@ -127,8 +131,14 @@ fn enhanced_on_synthetic_frames_all_orientations() {
             "enhanced dir {dir} sigma {sigma}: pos rms {p_rms:.3} max {p_max:.3} mm, angle rms {a_rms:.4} max {a_max:.4} rad, not ok {bad}"
         );
         assert_eq!(bad, 0);
-        assert!(p_rms < 0.1 && p_max < 0.5, "position rms {p_rms} max {p_max}");
-        assert!(a_rms < 0.01 && a_max < 0.03, "angle rms {a_rms} max {a_max}");
+        assert!(
+            p_rms < 0.1 && p_max < 0.5,
+            "position rms {p_rms} max {p_max}"
+        );
+        assert!(
+            a_rms < 0.01 && a_max < 0.03,
+            "angle rms {a_rms} max {a_max}"
+        );
     }
 }
 

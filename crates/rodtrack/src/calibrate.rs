@@ -64,8 +64,8 @@ pub fn calibrate_camera(
         .parent()
         .unwrap_or(Path::new("."))
         .join(&inputs.reference_frames.dir);
-    let files = list_image_files(&dir)
-        .with_context(|| format!("{name}: field `reference_frames.dir`"))?;
+    let files =
+        list_image_files(&dir).with_context(|| format!("{name}: field `reference_frames.dir`"))?;
     let mut rods = Vec::new();
     let mut frames: Vec<(usize, FrameBuffer)> = Vec::new();
     for rod in &inputs.rods {

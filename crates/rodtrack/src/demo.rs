@@ -42,7 +42,10 @@ pub fn run(args: Args) -> Result<()> {
         let meta = sim.render_reference(c, &mut buf)?;
         let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
         let intr = match &inputs.opencv_model_optional {
-            Some(m) => Some(CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs)?),
+            Some(m) => Some(CameraIntrinsics::from_opencv(
+                m.camera_matrix,
+                &m.dist_coeffs,
+            )?),
             None => None,
         };
         let mut rods = Vec::new();
@@ -145,7 +148,14 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-fn draw_table(rows: &[Measurement], f: usize, n: usize, proc_us: &[f64], elapsed_s: f64, tty: bool) {
+fn draw_table(
+    rows: &[Measurement],
+    f: usize,
+    n: usize,
+    proc_us: &[f64],
+    elapsed_s: f64,
+    tty: bool,
+) {
     let mut out = String::new();
     if tty {
         out.push_str("\x1b[H\x1b[2J");

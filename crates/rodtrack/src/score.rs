@@ -68,7 +68,9 @@ impl Stats {
         self.pos_mean_mm = self.acc[0] / n;
         self.pos_std_mm = (self.acc[1] / n - self.pos_mean_mm.powi(2)).max(0.0).sqrt();
         self.ang_mean_rad = self.acc[2] / n;
-        self.ang_std_rad = (self.acc[3] / n - self.ang_mean_rad.powi(2)).max(0.0).sqrt();
+        self.ang_std_rad = (self.acc[3] / n - self.ang_mean_rad.powi(2))
+            .max(0.0)
+            .sqrt();
         self.coverage = if self.visible > 0 {
             self.n as f64 / self.visible as f64
         } else {
@@ -89,7 +91,10 @@ pub fn wrap_angle(d: f64) -> f64 {
 
 /// Reads a measurement file by extension.
 pub fn read_rows(path: &Path) -> Result<Vec<(Measurement, Option<bool>)>> {
-    let r = if path.extension().is_some_and(|e| e == "jsonl" || e == "json") {
+    let r = if path
+        .extension()
+        .is_some_and(|e| e == "jsonl" || e == "json")
+    {
         read_measurements_jsonl(path)
     } else {
         read_measurements_csv(path)
@@ -153,8 +158,17 @@ pub fn score(
 pub fn print_table(table: &BTreeMap<Option<u32>, Stats>) {
     println!(
         "{:>5} {:>7} {:>9} {:>9} {:>9} {:>10} {:>10} {:>10} {:>6} {:>8} {:>8}",
-        "rod", "rows", "pos mean", "pos std", "pos max", "ang mean", "ang std", "ang max", "gross",
-        "coverage", "false ok"
+        "rod",
+        "rows",
+        "pos mean",
+        "pos std",
+        "pos max",
+        "ang mean",
+        "ang std",
+        "ang max",
+        "gross",
+        "coverage",
+        "false ok"
     );
     let mut rows: Vec<_> = table.iter().filter(|(k, _)| k.is_some()).collect();
     rows.extend(table.iter().filter(|(k, _)| k.is_none()));

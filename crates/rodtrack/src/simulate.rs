@@ -32,7 +32,12 @@ pub struct Args {
 }
 
 /// Builds a simulation of the reference table.
-pub fn build(scenario: &str, frames: Option<usize>, seed: u64, quality: bool) -> Result<Simulation> {
+pub fn build(
+    scenario: &str,
+    frames: Option<usize>,
+    seed: u64,
+    quality: bool,
+) -> Result<Simulation> {
     let scene = SceneConfig::default();
     let mut sc = Scenario::by_name(scenario, &scene, seed)?;
     if let Some(n) = frames {

@@ -83,7 +83,14 @@ pub fn run(args: Args) -> Result<()> {
         });
     }
     let total = sources[0].info().frame_count;
-    let stats = track_sources(&mut sources, &mut pipes, &mut sink, &stop, args.max_frames, total)?;
+    let stats = track_sources(
+        &mut sources,
+        &mut pipes,
+        &mut sink,
+        &stop,
+        args.max_frames,
+        total,
+    )?;
     sink.flush().context("flushing the output")?;
     eprintln!(
         "\n{} frame sets, {} rows, {} bad frames, median {:.1} us per camera frame, {:.0} frame sets/s",

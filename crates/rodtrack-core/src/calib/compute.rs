@@ -30,29 +30,42 @@ pub fn calibrate_rod(
 ) -> Result<RodCalibration, CoreError> {
     let rod = inputs.rod;
     let fail = |reason: String| CoreError::CalibrationFailed { rod, reason };
-    let marker = inputs.marker.validate().map_err(|e| CoreError::Calibration {
-        rod,
-        field: "marker".into(),
-        reason: e.to_string(),
-    })?;
+    let marker = inputs
+        .marker
+        .validate()
+        .map_err(|e| CoreError::Calibration {
+            rod,
+            field: "marker".into(),
+            reason: e.to_string(),
+        })?;
     if inputs.path_points_px.len() < 3 {
         return Err(CoreError::Calibration {
             rod,
             field: "path_points_px".into(),
-            reason: format!("needs at least 3 points, has {}", inputs.path_points_px.len()),
+            reason: format!(
+                "needs at least 3 points, has {}",
+                inputs.path_points_px.len()
+            ),
         });
     }
     for (i, p) in inputs.path_points_px.iter().enumerate() {
-        if !(p[0].is_finite() && p[1].is_finite()) || !frame.contains(p[0] as f32, p[1] as f32, 0.0)
-        {
+        let finite = p[0].is_finite() && p[1].is_finite();
+        if !finite || !frame.contains(p[0] as f32, p[1] as f32, 0.0) {
             return Err(CoreError::Calibration {
                 rod,
                 field: format!("path_points_px[{i}]"),
-                reason: format!("{p:?} is not a point inside the {}x{} image", frame.width(), frame.height()),
+                reason: format!(
+                    "{p:?} is not a point inside the {}x{} image",
+                    frame.width(),
+                    frame.height()
+                ),
             });
         }
     }
-    if !(inputs.travel_mm[0] <= inputs.travel_mm[1]) {
+    let travel_ok = inputs.travel_mm[0].is_finite()
+        && inputs.travel_mm[1].is_finite()
+        && inputs.travel_mm[0] <= inputs.travel_mm[1];
+    if !travel_ok {
         return Err(CoreError::Calibration {
             rod,
             field: "travel_mm".into(),
@@ -62,10 +75,18 @@ pub fn calibrate_rod(
     let mut warnings = Vec::new();
     let curve = CurveModel::fit(&inputs.path_points_px, intrinsics)
         .ok_or_else(|| fail("the path points do not define a line (all the same point?)".into()))?;
-    let dists: Vec<f64> = inputs.path_points_px.iter().map(|p| curve.distance(*p)).collect();
+    let dists: Vec<f64> = inputs
+        .path_points_px
+        .iter()
+        .map(|p| curve.distance(*p))
+        .collect();
     let path_rms = (dists.iter().map(|d| d * d).sum::<f64>() / dists.len() as f64).sqrt();
     let path_max = dists.iter().cloned().fold(0.0, f64::max);
-    let lams: Vec<f64> = inputs.path_points_px.iter().map(|p| curve.project(*p)).collect();
+    let lams: Vec<f64> = inputs
+        .path_points_px
+        .iter()
+        .map(|p| curve.project(*p))
+        .collect();
     let spread_px = {
         let a = lams.iter().cloned().fold(f64::MAX, f64::min);
         let b = lams.iter().cloned().fold(f64::MIN, f64::max);
@@ -195,8 +216,8 @@ pub fn calibrate_rod(
     // lambda = l0 + g u (g signed: carries the direction).
     let (l0, g, edge_rms_lam) = fit_affine(&edge_pts);
     let edge_rms_mm = edge_rms_lam / g.abs();
-    let scale_ratio = (g.abs() / curve.lambda_per_px(l0)) / (marker.barcode_len_mm() * 0.0 + 1.0)
-        / px_per_mm0;
+    let scale_ratio =
+        (g.abs() / curve.lambda_per_px(l0)) / (marker.barcode_len_mm() * 0.0 + 1.0) / px_per_mm0;
     let s_ref = inputs.reference.position_mm;
     let lambda_of_s = |s: f64| l0 + g * (s - s_ref);
 
@@ -411,7 +432,11 @@ fn silhouette(frame: &FrameView, knots: &Knots, s: f64) -> Option<(f64, f64)> {
         }
         let (a, b, c) = (grad[i - 1], grad[i], grad[i + 1]);
         let den = a - 2.0 * b + c;
-        let o = if den.abs() > 1e-12 { 0.5 * (a - c) / den } else { 0.0 };
+        let o = if den.abs() > 1e-12 {
+            0.5 * (a - c) / den
+        } else {
+            0.0
+        };
         Some(xs[i] + o.clamp(-0.5, 0.5) * step)
     };
     let left = peak(-1.6 * r, -0.5 * r)?;
@@ -529,7 +554,9 @@ fn paper_params(
     let (c2, cell_px, direction, p_ref) =
         best.ok_or_else(|| fail("paper line too short".into()))?;
     if c2 < 0.25 {
-        return Err(fail(format!("the paper's correlation finds no marker (C^2 = {c2:.2})")));
+        return Err(fail(format!(
+            "the paper's correlation finds no marker (C^2 = {c2:.2})"
+        )));
     }
     // The IIR filters delay the binary line; measure that delay against the raw line so the
     // Gray-code samples land where the paper intends.
@@ -549,9 +576,8 @@ fn paper_params(
     } else {
         marker.barcode_start_mm() + marker.barcode_len_mm()
     };
-    let offset = direction as f64 * (marker.bit_space_centre_mm(0) - u_p) * scale
-        - 1.5 * spacing
-        - lag;
+    let offset =
+        direction as f64 * (marker.bit_space_centre_mm(0) - u_p) * scale - 1.5 * spacing - lag;
     // T_hat: the period that best explains the pixels across the rod at bit space 0.
     let j0 = (p_ref as f64 + offset + 1.5 * spacing).round();
     if j0 < 0.0 || j0 >= line.pixels.len() as f64 {
@@ -580,7 +606,9 @@ fn paper_params(
     }
     // Eq. 6 along image +x gives -sigma_x * phase; choose the sign that makes it grow with the
     // angle. The enhanced sigma is along the normal (-ty, tx).
-    let lp = cal.knots.at(cal.reference_position_mm + marker.bit_space_centre_mm(0));
+    let lp = cal
+        .knots
+        .at(cal.reference_position_mm + marker.bit_space_centre_mm(0));
     let sigma_x = sigma as f64 * (-lp.ty);
     let phase_sign = if sigma_x > 0.0 { -1 } else { 1 };
     let mut p = PaperParams {

@@ -220,7 +220,10 @@ impl RodCalibration {
             return Err(err("knots", "needs at least 2 knots".into()));
         }
         if !(k.step_mm.is_finite() && k.step_mm > 0.0) {
-            return Err(err("knots.step_mm", format!("must be positive, got {}", k.step_mm)));
+            return Err(err(
+                "knots.step_mm",
+                format!("must be positive, got {}", k.step_mm),
+            ));
         }
         finite("knots.s0_mm", k.s0_mm)?;
         if k.y_px.len() != k.len() || k.radius_px.len() != k.len() {
@@ -246,7 +249,10 @@ impl RodCalibration {
         {
             return Err(err(
                 "knots.radius_px",
-                format!("entry {i} must be a plausible radius in px, got {}", k.radius_px[i]),
+                format!(
+                    "entry {i} must be a plausible radius in px, got {}",
+                    k.radius_px[i]
+                ),
             ));
         }
         if k.s0_mm > self.travel_mm[0] || k.s_end_mm() < self.travel_mm[1] + marker.length_mm() {
@@ -294,10 +300,7 @@ impl RodCalibration {
                 finite(name, v)?;
             }
             if p.direction.abs() != 1 || p.phase_sign.abs() != 1 {
-                return Err(err(
-                    "paper.direction/phase_sign",
-                    "must be 1 or -1".into(),
-                ));
+                return Err(err("paper.direction/phase_sign", "must be 1 or -1".into()));
             }
             if p.half_width_px == 0 || p.half_width_px > 200 {
                 return Err(err(

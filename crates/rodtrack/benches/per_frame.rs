@@ -1,0 +1,68 @@
+//! Per-frame processing time: every rod one camera sees in one 1440x1080 Bayer8 frame of the
+//! simulated table, in enhanced and paper mode (criterion).
+#![allow(missing_docs, clippy::unwrap_used)]
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
+use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode};
+use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
+
+fn setup() -> (
+    Vec<u8>,
+    CameraCalibration,
+    (usize, usize, usize, rodtrack_core::PixelFormat),
+) {
+    let scene = SceneConfig::default();
+    let sc = Scenario::by_name("gameplay", &scene, 7)
+        .unwrap()
+        .with_frames(50);
+    let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast).unwrap();
+    let inputs = sim.calibration_inputs(0, 7).unwrap();
+    let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
+    let meta = sim.render_reference(0, &mut buf).unwrap();
+    let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+    let m = inputs.opencv_model_optional.as_ref().unwrap();
+    let intr = CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap();
+    let rods = inputs
+        .rods
+        .iter()
+        .map(|r| calibrate_rod(r, &view, Some(&intr)).unwrap())
+        .collect();
+    let cal = CameraCalibration {
+        name: "cam0".into(),
+        index: 0,
+        image_width: meta.width,
+        image_height: meta.height,
+        pixel_format: meta.format.name().into(),
+        fps: 200.0,
+        opencv_model: None,
+        rods,
+    };
+    let meta = sim.render(25, 0, &mut buf).unwrap();
+    (
+        buf,
+        cal,
+        (meta.width, meta.height, meta.stride, meta.format),
+    )
+}
+
+fn per_frame(c: &mut Criterion) {
+    let (buf, cal, (w, h, stride, fmt)) = setup();
+    let view = FrameView::new(&buf, w, h, stride, fmt).unwrap();
+    let mut g = c.benchmark_group("per_frame");
+    for (name, mode) in [("enhanced", Mode::Enhanced), ("paper", Mode::Paper)] {
+        let mut pipe = CameraPipeline::new(&cal, mode).unwrap();
+        let mut rows = Vec::with_capacity(16);
+        g.bench_function(format!("{name}_{}_rods", cal.rods.len()), |b| {
+            b.iter(|| {
+                rows.clear();
+                pipe.process(&view, 0, 0.0, &mut rows).unwrap();
+                std::hint::black_box(&rows);
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, per_frame);
+criterion_main!(benches);
