@@ -36,15 +36,17 @@ impl Timestamp {
     pub fn as_secs_f64(self) -> f64 {
         self.0 as f64 * 1e-9
     }
-    /// The time of frame `frame_id` at a constant `fps` (frame 0 at time 0).
+    /// The time of frame `frame_id` at a constant `fps` (frame 0 at time 0). Exact for whole
+    /// frame rates; 0 for a rate that is not finite and positive.
     pub fn from_frame(frame_id: u64, fps: f64) -> Self {
-        if fps > 0.0 && fps.is_finite() {
-            // Integer arithmetic where exact, to avoid drift on long runs.
-            let ns = frame_id as f64 * 1e9 / fps;
-            Timestamp(ns.round() as u64)
-        } else {
-            Timestamp(0)
+        if !(fps > 0.0 && fps.is_finite()) {
+            return Timestamp(0);
         }
+        if fps.fract() == 0.0 && fps <= u64::MAX as f64 {
+            let ns = u128::from(frame_id) * 1_000_000_000 / fps as u128;
+            return Timestamp(u64::try_from(ns).unwrap_or(u64::MAX));
+        }
+        Timestamp((frame_id as f64 * 1e9 / fps).round() as u64)
     }
 }
 
@@ -217,6 +219,12 @@ mod tests {
         assert_eq!(Timestamp::from_secs_f64(1.5).as_nanos(), 1_500_000_000);
         assert_eq!(Timestamp::from_secs_f64(f64::NAN).as_nanos(), 0);
         assert_eq!(Timestamp::from_frame(3, 0.0).as_nanos(), 0);
+        assert_eq!(Timestamp::from_frame(1, 3.0).as_nanos(), 333_333_333);
+        assert_eq!(
+            Timestamp::from_frame(10_000_000_019, 227.0).as_nanos(),
+            44_052_863_519_823_788
+        );
+        assert_eq!(Timestamp::from_frame(2, 2.5).as_nanos(), 800_000_000);
     }
 
     #[test]

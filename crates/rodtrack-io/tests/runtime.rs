@@ -418,3 +418,63 @@ fn a_panicking_tracker_ends_its_camera_but_rows_are_kept() {
     assert_eq!(sink.0.len(), 50);
     assert_eq!(r.rows_written, 100 + 40);
 }
+
+#[test]
+fn two_image_folders_through_the_pipeline_to_csv() {
+    use rodtrack_io::{OpenOptions, SourceFactory};
+    let dir = std::env::temp_dir().join(format!("rodtrack-io-e2e-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for cam in ["cam0", "cam1"] {
+        std::fs::create_dir_all(dir.join(cam)).unwrap();
+        for id in 100..110u32 {
+            if cam == "cam1" && id == 104 {
+                continue; // camera 1 missed frame 104
+            }
+            let img = image::GrayImage::from_pixel(8, 6, image::Luma([id as u8]));
+            img.save(dir.join(cam).join(format!("{id:06}.pgm")))
+                .unwrap();
+        }
+    }
+    std::fs::write(dir.join("cam0").join("000107.pgm"), b"P5 8 6 255 broken").unwrap();
+    let factory = SourceFactory::new();
+    let opts = OpenOptions {
+        format: Some(PixelFormat::BayerRggb8),
+        fps: Some(100.0),
+        size: None,
+    };
+    let mut p = Pipeline::new(config(Mode::Batch));
+    for cam in ["cam0", "cam1"] {
+        let src = factory
+            .open(&dir.join(cam).display().to_string(), &opts)
+            .unwrap();
+        assert_eq!(src.info().format, PixelFormat::BayerRggb8);
+        p.add_camera(src, tracker(Duration::ZERO));
+    }
+    let csv = dir.join("out.csv");
+    let mut sink = CsvSink::create(&csv).unwrap();
+    let r = p.run(&mut sink).unwrap();
+    drop(sink);
+    assert_eq!((r.sets_complete, r.sets_incomplete), (9, 1));
+    assert_eq!(r.cameras[0].bad_frames, 1);
+    assert!(
+        r.cameras[0].errors[0].contains("000107.pgm"),
+        "{:?}",
+        r.cameras[0].errors
+    );
+    let rows = read_measurements_csv(&csv).unwrap();
+    // 10 + 9 frames, 2 rows each, except one bad frame with 1 row.
+    assert_eq!(rows.len(), 2 * 19 - 1);
+    let bad: Vec<_> = rows
+        .iter()
+        .filter(|(m, _)| m.status == Status::BadFrame)
+        .collect();
+    assert_eq!(
+        (bad.len(), bad[0].0.frame, bad[0].0.timestamp_s),
+        (1, 107, 1.07)
+    );
+    let ok = rows
+        .iter()
+        .find(|(m, _)| m.frame == 103 && m.camera == CameraId::Camera(1))
+        .unwrap();
+    assert_eq!(ok.0.position_mm, 103.0);
+}
