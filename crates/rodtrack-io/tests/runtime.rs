@@ -206,6 +206,11 @@ fn a_missing_frame_is_reported_without_waiting() {
         .iter()
         .all(|m| m.frame == 5 && m.camera == CameraId::Camera(0)));
     assert_eq!(set5.len(), 2);
+    let text = r.to_string();
+    assert!(
+        text.contains("1 incomplete") && text.contains("camera 1 (fake)"),
+        "{text}"
+    );
 }
 
 #[test]

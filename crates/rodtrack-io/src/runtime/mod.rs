@@ -20,6 +20,32 @@
 //!   return of the sink's `write` for its set.
 //! - The stop flag ends capture; frames already read are processed, every pending set is
 //!   emitted and the sink is flushed.
+//!
+//! ```no_run
+//! use rodtrack_core::{CameraId, Measurement, Status};
+//! use rodtrack_io::runtime::{Mode, Pipeline, PipelineConfig};
+//! use rodtrack_io::{CsvSink, OpenOptions, SourceFactory};
+//!
+//! # fn main() -> Result<(), rodtrack_io::IoError> {
+//! let factory = SourceFactory::new();
+//! let mut pipeline = Pipeline::new(PipelineConfig { mode: Mode::Paced { speed: 1.0 }, ..Default::default() });
+//! for input in ["rec/cam0", "raw:rec/cam1.raw?width=1440&height=1080&format=bayer_rggb8"] {
+//!     let source = factory.open(input, &OpenOptions::default())?;
+//!     pipeline.add_camera(source, Box::new(|meta, frame, rows| {
+//!         // The tracker goes here; a bad frame arrives as Err and can be reported as such.
+//!         let status = if frame.is_ok() { Status::NotFound } else { Status::BadFrame };
+//!         let t = meta.timestamp_ns.as_secs_f64();
+//!         rows.push(Measurement::empty(meta.frame_id, t, CameraId::Camera(meta.camera), 0, status));
+//!     }));
+//! }
+//! let stop = pipeline.stop_flag(); // set it from a Ctrl-C handler
+//! # let _ = stop;
+//! let mut sink = CsvSink::create("out.csv".as_ref())?;
+//! let report = pipeline.run(&mut sink)?;
+//! eprintln!("{report}");
+//! # Ok(())
+//! # }
+//! ```
 
 mod latency;
 
@@ -59,6 +85,17 @@ pub enum Mode {
     },
     /// As fast as possible; block when the queue is full, never drop (offline files).
     Batch,
+}
+
+impl Mode {
+    /// [`Mode::Live`] for live sources (cameras), [`Mode::Batch`] for recordings.
+    pub fn for_source(live: bool) -> Mode {
+        if live {
+            Mode::Live
+        } else {
+            Mode::Batch
+        }
+    }
 }
 
 /// How frames of different cameras are matched into a set.
@@ -186,6 +223,35 @@ pub struct PipelineReport {
     pub elapsed: Duration,
     /// True when the stop flag ended the run.
     pub stopped: bool,
+}
+
+impl std::fmt::Display for PipelineReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "{:.3} s{}: {} frame sets ({} incomplete), {} rows written, {} sink errors",
+            self.elapsed.as_secs_f64(),
+            if self.stopped { " (stopped)" } else { "" },
+            self.sets_complete + self.sets_incomplete,
+            self.sets_incomplete,
+            self.rows_written,
+            self.sink_errors
+        )?;
+        if let Some(e) = &self.first_sink_error {
+            writeln!(f, "  first sink error: {e}")?;
+        }
+        for (i, c) in self.cameras.iter().enumerate() {
+            writeln!(
+                f,
+                "  camera {i} ({}): {} read, {} processed, {} dropped, {} bad, {} missing from sets",
+                c.name, c.frames_read, c.frames_processed, c.frames_dropped, c.bad_frames, c.missing_in_sets
+            )?;
+            for e in &c.errors {
+                writeln!(f, "    {e}")?;
+            }
+        }
+        write!(f, "  latency: {}", self.latency)
+    }
 }
 
 struct Camera {
