@@ -20,6 +20,8 @@ struct Fake {
     ts_offset_ns: u64,
     /// Sleep this long before delivering frame `.0`.
     stall: Option<(u64, Duration)>,
+    /// Bad frames do not report their id.
+    hide_bad_ids: bool,
 }
 
 impl Fake {
@@ -30,6 +32,7 @@ impl Fake {
             bad: HashSet::new(),
             ts_offset_ns: 0,
             stall: None,
+            hide_bad_ids: false,
         }
     }
 }
@@ -56,6 +59,12 @@ impl FrameSource for Fake {
             }
         }
         std::thread::sleep(self.delay);
+        if self.bad.contains(&id) && self.hide_bad_ids {
+            return Err(IoError::Decode {
+                path: "stream".into(),
+                reason: format!("lost frame {id}"),
+            });
+        }
         buf.meta.frame_id = id;
         buf.meta.timestamp_ns = Timestamp(id * 5_000_000 + self.ts_offset_ns);
         if self.bad.contains(&id) {
@@ -309,6 +318,22 @@ fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
     assert_eq!(sink.0[3][0].status, Status::BadFrame);
     assert_eq!(sink.0[3][0].frame, 3);
     assert_eq!(sink.0[9].len(), 2);
+
+    // A source that cannot tell a bad frame's id: the pipeline numbers it after the last one.
+    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut src = Fake::new(0..10);
+    src.bad = [0, 6].into_iter().collect();
+    src.hide_bad_ids = true;
+    p.add_camera(Box::new(src), tracker(Duration::ZERO));
+    let mut sink = Sets::default();
+    let r = p.run(&mut sink).unwrap();
+    assert_eq!(r.cameras[0].bad_frames, 2);
+    let ids: Vec<u64> = sink.0.iter().map(|s| s[0].frame).collect();
+    assert_eq!(ids, (0..10).collect::<Vec<_>>());
+    assert_eq!(
+        (sink.0[0][0].status, sink.0[6][0].status),
+        (Status::BadFrame, Status::BadFrame)
+    );
 }
 
 #[test]

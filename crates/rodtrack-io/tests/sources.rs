@@ -422,3 +422,18 @@ fn raw_input_errors() {
     let s = f.open(&format!("raw:{}", p.display()), &o).unwrap();
     assert_eq!(s.info().frame_count, Some(2));
 }
+
+#[cfg(unix)]
+#[test]
+fn an_unreadable_file_is_named_and_skipped() {
+    let dir = tmpdir("unreadable");
+    write_gray8(&dir.join("000000.png"), 4, 4, 0);
+    std::os::unix::fs::symlink("/nonexistent/target.png", dir.join("000001.png")).unwrap();
+    write_gray8(&dir.join("000002.png"), 4, 4, 2);
+    let mut seq = open(&dir, None);
+    let mut buf = FrameBuffer::new();
+    seq.next_frame(&mut buf).unwrap().unwrap();
+    expect_err_naming(seq.next_frame(&mut buf), "000001.png", "cannot open");
+    seq.next_frame(&mut buf).unwrap().unwrap();
+    assert_eq!(buf.meta.frame_id, 2);
+}

@@ -304,6 +304,9 @@ enum ToGroup {
 
 const MAX_ERRORS: usize = 16;
 
+/// Placeholder frame id while a source reads (see the capture loop).
+const UNKNOWN_ID: u64 = u64::MAX;
+
 fn push_error(errors: &Mutex<Vec<String>>, msg: String) {
     if let Ok(mut e) = errors.lock() {
         if e.len() < MAX_ERRORS {
@@ -432,15 +435,23 @@ impl Pipeline {
                 .spawn(move || {
                     let c = &ctr.cameras[i];
                     let mut pace: Option<(Instant, u64)> = None;
+                    let mut last: Option<(u64, Timestamp)> = None;
                     while !stop.load(Ordering::Relaxed) {
                         let mut buf = cpool.get();
                         buf.meta.camera = i as u32;
+                        // A bad frame whose source could not tell its id gets the next one.
+                        buf.meta.frame_id = UNKNOWN_ID;
                         let result = match source.next_frame(&mut buf) {
                             Ok(None) => break,
                             Ok(Some(())) => Ok(()),
                             Err(e) => Err(e),
                         };
                         buf.meta.camera = i as u32;
+                        if buf.meta.frame_id == UNKNOWN_ID {
+                            buf.meta.frame_id = last.map_or(0, |(id, _)| id + 1);
+                            buf.meta.timestamp_ns = last.map_or(Timestamp(0), |(_, t)| t);
+                        }
+                        last = Some((buf.meta.frame_id, buf.meta.timestamp_ns));
                         c.frames_read.fetch_add(1, Ordering::Relaxed);
                         if let Err(e) = &result {
                             c.bad_frames.fetch_add(1, Ordering::Relaxed);
