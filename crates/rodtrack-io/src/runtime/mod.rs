@@ -341,9 +341,12 @@ fn sleep_until(until: Instant, stop: &AtomicBool) -> bool {
     }
 }
 
+/// One camera's contribution to a set: metadata, rows, time the frame became available.
+type Part = Option<(FrameMeta, Vec<Measurement>, Instant)>;
+
 struct Pending {
     created: Instant,
-    parts: Vec<Option<(FrameMeta, Vec<Measurement>, Instant)>>,
+    parts: Vec<Part>,
 }
 
 impl Pipeline {
@@ -567,6 +570,7 @@ impl Pipeline {
             counters: counters.clone(),
             first_sink_error: None,
             vec_tx,
+            free_parts: Vec::new(),
         };
         let tick = (self.config.group_timeout / 4)
             .clamp(Duration::from_millis(1), Duration::from_millis(10));
@@ -669,6 +673,8 @@ struct Grouper {
     counters: Arc<PipelineCounters>,
     first_sink_error: Option<String>,
     vec_tx: Sender<Vec<Measurement>>,
+    /// Recycled per-set part vectors.
+    free_parts: Vec<Vec<Part>>,
 }
 
 impl Grouper {
@@ -720,9 +726,15 @@ impl Grouper {
         let late = target.is_none() && self.last_emitted.is_some_and(|l| k <= l);
         let key = target.unwrap_or(k);
         let n = self.n;
-        let p = self.pending.entry(key).or_insert_with(|| Pending {
-            created: Instant::now(),
-            parts: (0..n).map(|_| None).collect(),
+        let free = &mut self.free_parts;
+        let p = self.pending.entry(key).or_insert_with(|| {
+            let mut parts = free.pop().unwrap_or_default();
+            parts.clear();
+            parts.resize_with(n, || None);
+            Pending {
+                created: Instant::now(),
+                parts,
+            }
         });
         p.parts[camera] = Some((meta, rows, available));
         if late {
@@ -829,6 +841,9 @@ impl Grouper {
             self.latency.record(now.duration_since(available));
             rows.clear();
             let _ = self.vec_tx.try_send(rows);
+        }
+        if self.free_parts.len() < 64 {
+            self.free_parts.push(p.parts);
         }
     }
 }
