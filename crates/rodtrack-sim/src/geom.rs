@@ -357,6 +357,15 @@ pub(crate) struct Shaded {
     pub alpha: f32,
 }
 
+/// A ray in one rod's rotating frame, with its interval inside the figures' `x`/`z` slabs.
+struct FigCache {
+    rod: i32,
+    lo: V3,
+    linv: V3,
+    t0: f32,
+    t1: f32,
+}
+
 /// Precomputed constants for shading.
 #[derive(Debug, Clone)]
 pub(crate) struct Shader {
@@ -436,6 +445,13 @@ impl Shader {
         let inv = inv_dir(d);
         let mut best: Option<Shaded> = None;
         let mut t_best = t_max;
+        let mut fig_cache = FigCache {
+            rod: -1,
+            lo: [0.0; 3],
+            linv: [0.0; 3],
+            t0: 0.0,
+            t1: 0.0,
+        };
         for &c in cands {
             if Some(c) == skip {
                 continue;
@@ -457,21 +473,48 @@ impl Shader {
                 }
                 Obj::Figure(i, k) => {
                     let rod = &g.rods[i as usize];
-                    // Into the figure frame: subtract the figure origin, rotate by -phi about y.
                     let (c_, s_) = (rod.cphi, rod.sphi);
-                    let px = o[0] - rod.x;
-                    let py = o[1] - rod.figs[k as usize];
-                    let pz = o[2] - rod.z;
-                    let lo_ = [c_ * px - s_ * pz, py, s_ * px + c_ * pz];
-                    let ld = [c_ * d[0] - s_ * d[2], d[1], s_ * d[0] + c_ * d[2]];
-                    let linv = inv_dir(ld);
-                    let (blo, bhi) = self.figure_bounds;
-                    match ray_box(lo_, linv, blo, bhi) {
-                        Some((t, _, _)) if t < t_best => {}
-                        _ => continue,
+                    // The ray in the rod's rotating frame (shared by all its figures): subtract
+                    // the axis point, rotate by -phi about y. Cached per rod.
+                    if fig_cache.rod != i as i32 {
+                        let px = o[0] - rod.x;
+                        let pz = o[2] - rod.z;
+                        let lo_ = [c_ * px - s_ * pz, o[1], s_ * px + c_ * pz];
+                        let ld = [c_ * d[0] - s_ * d[2], d[1], s_ * d[0] + c_ * d[2]];
+                        let linv = inv_dir(ld);
+                        let (blo, bhi) = self.figure_bounds;
+                        let mut t0 = 0.0f32;
+                        let mut t1 = f32::INFINITY;
+                        for a in [0usize, 2] {
+                            let u1 = (blo[a] - lo_[a]) * linv[a];
+                            let u2 = (bhi[a] - lo_[a]) * linv[a];
+                            t0 = t0.max(u1.min(u2));
+                            t1 = t1.min(u1.max(u2));
+                        }
+                        fig_cache = FigCache {
+                            rod: i as i32,
+                            lo: lo_,
+                            linv,
+                            t0,
+                            t1,
+                        };
                     }
+                    let fc = &fig_cache;
+                    if fc.t0 > fc.t1 || fc.t0 >= t_best {
+                        continue;
+                    }
+                    let (blo, bhi) = self.figure_bounds;
+                    let ly = fc.lo[1] - rod.figs[k as usize];
+                    let u1 = (blo[1] - ly) * fc.linv[1];
+                    let u2 = (bhi[1] - ly) * fc.linv[1];
+                    let tn = fc.t0.max(u1.min(u2));
+                    let tf = fc.t1.min(u1.max(u2));
+                    if tn > tf || tn >= t_best {
+                        continue;
+                    }
+                    let lo_ = [fc.lo[0], ly, fc.lo[2]];
                     for (blo, bhi) in &self.figure {
-                        if let Some((t, axis, sign)) = ray_box(lo_, linv, *blo, *bhi) {
+                        if let Some((t, axis, sign)) = ray_box(lo_, fc.linv, *blo, *bhi) {
                             if t < t_best {
                                 // World z of the local face normal (rotation by +phi about y).
                                 let nz = match axis {
@@ -584,7 +627,8 @@ impl MarkerTexture {
     #[inline]
     fn bit_mean(&self, k: u32, psi: f32, h: f32) -> f32 {
         let sc = self.steps / std::f32::consts::TAU;
-        let period = (2u32 << k) as f32;
+        // Bit k of gray(n) repeats every 2^(k+2) steps and is black over the middle half.
+        let period = (4u32 << k) as f32;
         let shift = (1u32 << k) as f32;
         let cum = |s: f32| {
             let x = (s + shift) / period;

@@ -42,7 +42,7 @@ pub use error::SimError;
 pub use geom::{RodPose, WorldState};
 pub use motion::{Move, Spin, Track, TrackBuilder};
 pub use record::{write_recording, RecordOptions, RecordSummary};
-pub use render::RenderMode;
+pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
 pub use sim::{CalibOptions, FrameMeta, Simulation, TruthRow};

@@ -48,28 +48,34 @@ pub(crate) struct Rect {
 }
 
 impl Rect {
-    fn overlaps(&self, o: &Rect) -> bool {
-        self.x0 < o.x1 && o.x0 < self.x1 && self.y0 < o.y1 && o.y0 < self.y1
-    }
     fn is_empty(&self) -> bool {
         self.x0 >= self.x1 || self.y0 >= self.y1
     }
 }
 
-/// Pixels where a rod can appear, with everything about the hit that does not depend on the
+/// A pixel where a rod can appear, with everything about the hit that does not depend on the
 /// rod's pose (the rod only slides along and turns about its own axis).
+#[derive(Debug, Clone, Copy)]
+struct StripPx {
+    idx: u32,
+    y: f32,
+    a: f32,
+    shade: f32,
+    spec: f32,
+    hu: f32,
+    hpsi: f32,
+    alpha: f32,
+}
+
+/// One rod's pixels, sorted by the world `y` they see (so the marker's pixels are one range).
 #[derive(Debug, Clone, Default)]
 struct Strip {
-    idx: Vec<u32>,
-    y: Vec<f32>,
-    a: Vec<f32>,
-    shade: Vec<f32>,
-    spec: Vec<f32>,
-    hu: Vec<f32>,
-    hpsi: Vec<f32>,
-    alpha: Vec<f32>,
+    px: Vec<StripPx>,
     bbox: Option<Rect>,
 }
+
+/// Tile size for the dirty regions of moving objects, px.
+const TILE: usize = 16;
 
 /// One camera's renderer with all its precomputed tables and scratch buffers.
 #[derive(Debug, Clone)]
@@ -81,16 +87,46 @@ pub(crate) struct CameraRenderer {
     bayer: Option<[u8; 4]>,
     origin: V3,
     rays: Vec<V3>,
-    /// Static background radiance (DN at brightness 1), `ch` values per pixel.
+    /// Table only (DN at brightness 1), `ch` values per pixel: what a rod is blended over.
+    bg0: Vec<f32>,
+    /// Table plus bare steel rods: the image with nothing moving and no marker.
     bg: Vec<f32>,
     bg_t: Vec<f32>,
     /// Light factor per pixel (gradient times DN scale).
     light: Vec<f32>,
     glare: Option<Vec<f32>>,
     strips: Vec<Strip>,
+    /// Bit `i` set when rod `i`'s strip touches the tile.
+    tile_rods: Vec<u64>,
+    tiles_x: usize,
+    /// Working image.
     rad: Vec<f32>,
-    dirty: Vec<Rect>,
-    rects: Vec<(Rect, Vec<Obj>)>,
+    /// Tiles and marker ranges drawn last frame (to restore).
+    prev_tiles: Vec<u32>,
+    prev_ranges: Vec<(usize, usize, usize)>,
+    /// Scratch: objects per tile, touched tiles.
+    tile_objs: Vec<Vec<Obj>>,
+    touched: Vec<u32>,
+    pub stats: RenderStats,
+}
+
+/// Where the time of the last rendered frame went.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct RenderStats {
+    /// Restoring last frame's changes, ms.
+    pub restore_ms: f64,
+    /// Shading the markers, ms.
+    pub markers_ms: f64,
+    /// Tracing figures, hands and ball, ms.
+    pub objects_ms: f64,
+    /// Light, noise and quantisation over the whole frame, ms.
+    pub finish_ms: f64,
+    /// Marker pixels shaded.
+    pub marker_px: usize,
+    /// 16 x 16 tiles traced for moving objects.
+    pub object_tiles: usize,
+    /// Sum over those tiles of the number of objects tested.
+    pub object_cands: usize,
 }
 
 fn norm(v: [f64; 3]) -> V3 {
@@ -99,7 +135,13 @@ fn norm(v: [f64; 3]) -> V3 {
 }
 
 impl CameraRenderer {
-    pub fn new(cam: &SimCamera, scene: &SceneConfig, lighting: &Lighting, shader: &Shader) -> Self {
+    pub fn new(
+        cam: &SimCamera,
+        scene: &SceneConfig,
+        lighting: &Lighting,
+        shader: &Shader,
+        mode: RenderMode,
+    ) -> Self {
         let (w, h) = (cam.camera.width, cam.camera.height);
         let bayer = bayer_pattern(cam.pixel_format);
         let ch = if cam.pixel_format == PixelFormat::Rgb8 {
@@ -109,7 +151,7 @@ impl CameraRenderer {
         };
         let c = cam.camera.pose.centre_world();
         let origin = c.map(|v| v as f32);
-        // Ray table: exact undistortion per pixel, warm-started along each row.
+        // Ray table: exact undistortion per pixel.
         let k = &cam.camera.intrinsics;
         let mut rays = Vec::with_capacity(w * h);
         for y in 0..h {
@@ -151,6 +193,8 @@ impl CameraRenderer {
             }
             Some(m)
         });
+        let tiles_x = w.div_ceil(TILE);
+        let tiles_y = h.div_ceil(TILE);
         let mut r = CameraRenderer {
             cam: cam.clone(),
             w,
@@ -159,18 +203,28 @@ impl CameraRenderer {
             bayer,
             origin,
             rays,
-            bg: vec![0.0; w * h * ch],
+            bg0: vec![0.0; w * h * ch],
+            bg: Vec::new(),
             bg_t: vec![0.0; w * h],
             light,
             glare,
             strips: Vec::new(),
-            rad: vec![0.0; w * h * ch],
-            dirty: Vec::new(),
-            rects: Vec::new(),
+            tile_rods: vec![0; tiles_x * tiles_y],
+            tiles_x,
+            rad: Vec::new(),
+            prev_tiles: Vec::new(),
+            prev_ranges: Vec::new(),
+            tile_objs: vec![Vec::new(); tiles_x * tiles_y],
+            touched: Vec::new(),
+            stats: RenderStats::default(),
         };
-        r.render_background(&Table::new(scene));
+        let sub = match mode {
+            RenderMode::Fast => 2,
+            RenderMode::Quality => QSUB,
+        };
+        r.render_background(&Table::new(scene), sub);
         r.build_strips(scene, shader);
-        r.rad.copy_from_slice(&r.bg);
+        r.rad = r.bg.clone();
         r
     }
 
@@ -220,15 +274,26 @@ impl CameraRenderer {
         }
     }
 
-    fn render_background(&mut self, table: &Table) {
-        let n = QSUB * QSUB;
+    /// Writes colour `rgb` (already lit) for pixel `p` into `buf`.
+    #[inline]
+    fn put(&self, buf: &mut [f32], p: usize, rgb: V3) {
+        if self.ch == 3 {
+            buf[p * 3..p * 3 + 3].copy_from_slice(&rgb);
+        } else {
+            buf[p] = self.pick(rgb, p % self.w, p / self.w);
+        }
+    }
+
+    fn render_background(&mut self, table: &Table, sub: usize) {
+        let n = sub * sub;
+        let mut bg0 = std::mem::take(&mut self.bg0);
         for y in 0..self.h {
             for x in 0..self.w {
                 let p = y * self.w + x;
                 let mut acc = [0.0f32; 3];
                 for s in 0..n {
-                    let fx = ((s % QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
-                    let fy = ((s / QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
+                    let fx = ((s % sub) as f32 + 0.5) / sub as f32 - 0.5;
+                    let fy = ((s / sub) as f32 + 0.5) / sub as f32 - 0.5;
                     let d = self.sub_ray(x, y, fx, fy);
                     let (_, c) = table.trace(self.origin, d);
                     for k in 0..3 {
@@ -238,18 +303,19 @@ impl CameraRenderer {
                 let (t, _) = table.trace(self.origin, self.rays[p]);
                 self.bg_t[p] = t;
                 let rgb = acc.map(|v| v / n as f32 * self.light[p]);
-                if self.ch == 3 {
-                    self.bg[p * 3..p * 3 + 3].copy_from_slice(&rgb);
-                } else {
-                    self.bg[p] = self.pick(rgb, x, y);
-                }
+                self.put(&mut bg0, p, rgb);
             }
         }
+        self.bg0 = bg0;
     }
 
+    /// Finds every rod's pixels and bakes the bare steel rods into `bg`.
     fn build_strips(&mut self, scene: &SceneConfig, shader: &Shader) {
         let amb = shader.ambient;
-        for rc in &scene.rods {
+        let mut bg = self.bg0.clone();
+        let steel = shader.steel;
+        let ss = shader.steel_spec;
+        for (ri, rc) in scene.rods.iter().enumerate() {
             let (x, z, r) = (rc.x_mm as f32, rc.z_mm as f32, rc.radius_mm() as f32);
             let mut s = Strip::default();
             let mut bb: Option<Rect> = None;
@@ -257,34 +323,48 @@ impl CameraRenderer {
                 for px in 0..self.w {
                     let p = py * self.w + px;
                     let foot = self.foot(px, py);
-                    if let Some(h) = rod_sample(x, z, r, self.origin, self.rays[p], foot, amb) {
-                        if h.t >= self.bg_t[p] {
-                            continue;
-                        }
-                        s.idx.push(p as u32);
-                        s.y.push(h.y);
-                        s.a.push(h.a);
-                        s.shade.push(h.shade * self.light[p]);
-                        s.spec.push(h.spec * self.light[p]);
-                        s.hu.push(h.hu);
-                        s.hpsi.push(h.hpsi);
-                        s.alpha.push(h.alpha);
-                        let b = bb.get_or_insert(Rect {
-                            x0: px,
-                            y0: py,
-                            x1: px + 1,
-                            y1: py + 1,
-                        });
-                        b.x0 = b.x0.min(px);
-                        b.x1 = b.x1.max(px + 1);
-                        b.y0 = b.y0.min(py);
-                        b.y1 = b.y1.max(py + 1);
+                    let Some(h) = rod_sample(x, z, r, self.origin, self.rays[p], foot, amb) else {
+                        continue;
+                    };
+                    if h.t >= self.bg_t[p] {
+                        continue;
+                    }
+                    let sp = StripPx {
+                        idx: p as u32,
+                        y: h.y,
+                        a: h.a,
+                        shade: h.shade * self.light[p],
+                        spec: h.spec * self.light[p],
+                        hu: h.hu,
+                        hpsi: h.hpsi,
+                        alpha: h.alpha,
+                    };
+                    let v = sp.shade * steel + sp.spec * ss;
+                    for c in 0..self.ch {
+                        let k = p * self.ch + c;
+                        bg[k] = sp.alpha * v + (1.0 - sp.alpha) * bg[k];
+                    }
+                    s.px.push(sp);
+                    let b = bb.get_or_insert(Rect {
+                        x0: px,
+                        y0: py,
+                        x1: px + 1,
+                        y1: py + 1,
+                    });
+                    b.x0 = b.x0.min(px);
+                    b.x1 = b.x1.max(px + 1);
+                    b.y0 = b.y0.min(py);
+                    b.y1 = b.y1.max(py + 1);
+                    if ri < 64 {
+                        self.tile_rods[(py / TILE) * self.tiles_x + px / TILE] |= 1u64 << ri;
                     }
                 }
             }
+            s.px.sort_by(|a, b| a.y.total_cmp(&b.y));
             s.bbox = bb;
             self.strips.push(s);
         }
+        self.bg = bg;
     }
 
     /// Projected bounding rectangle of world points, with a margin; `None` if off-image.
@@ -297,7 +377,7 @@ impl CameraRenderer {
             v0 = v0.min(v);
             v1 = v1.max(v);
         }
-        let m = 3.0 + 0.04 * (u1 - u0).max(v1 - v0);
+        let m = 2.0 + 0.03 * (u1 - u0).max(v1 - v0);
         let r = Rect {
             x0: (u0 - m).floor().clamp(0.0, self.w as f64) as usize,
             y0: (v0 - m).floor().clamp(0.0, self.h as f64) as usize,
@@ -307,24 +387,39 @@ impl CameraRenderer {
         (!r.is_empty()).then_some(r)
     }
 
-    /// Collects the dirty rectangles of moving things over all time samples, with the
-    /// candidate objects for each.
-    fn collect_rects(&mut self, geoms: &[WorldGeom], shader: &Shader) {
-        self.rects.clear();
-        let mut objs: Vec<(Obj, Rect)> = Vec::new();
+    fn mark(&mut self, r: Rect, o: Obj) {
+        for ty in r.y0 / TILE..r.y1.div_ceil(TILE) {
+            for tx in r.x0 / TILE..r.x1.div_ceil(TILE) {
+                let t = ty * self.tiles_x + tx;
+                if self.tile_objs[t].is_empty() {
+                    self.touched.push(t as u32);
+                }
+                self.tile_objs[t].push(o);
+            }
+        }
+    }
+
+    /// Marks the tiles covered by moving things (over all time samples), with the objects
+    /// that may be seen in each.
+    fn collect_tiles(&mut self, geoms: &[WorldGeom], shader: &Shader) {
+        for &t in &self.touched {
+            self.tile_objs[t as usize].clear();
+        }
+        self.touched.clear();
         let (blo, bhi) = shader.figure_bounds;
-        let g0 = &geoms[0];
-        let pick_times: Vec<&WorldGeom> = if geoms.len() > 2 {
-            vec![&geoms[0], &geoms[geoms.len() / 2], &geoms[geoms.len() - 1]]
+        let last = geoms.len() - 1;
+        let picks = if last >= 2 {
+            [0, last / 2, last]
         } else {
-            geoms.iter().collect()
+            [0, last, last]
         };
+        let g0 = &geoms[0];
         let mut pts: Vec<[f64; 3]> = Vec::with_capacity(24);
-        for (i, rod) in g0.rods.iter().enumerate() {
-            for k in 0..rod.figs.len() {
+        for i in 0..g0.rods.len() {
+            for k in 0..g0.rods[i].figs.len() {
                 pts.clear();
-                for g in &pick_times {
-                    let rg = &g.rods[i];
+                for &gi in &picks {
+                    let rg = &geoms[gi].rods[i];
                     for c in 0..8 {
                         let lx = if c & 1 == 0 { blo[0] } else { bhi[0] };
                         let ly = if c & 2 == 0 { blo[1] } else { bhi[1] };
@@ -336,14 +431,16 @@ impl CameraRenderer {
                     }
                 }
                 if let Some(r) = self.project_rect(&pts) {
-                    objs.push((Obj::Figure(i as u16, k as u16), r));
+                    self.mark(r, Obj::Figure(i as u16, k as u16));
                 }
             }
         }
         for h in 0..g0.hand_boxes.len() {
             pts.clear();
-            for g in &pick_times {
-                let b = g.hand_boxes[h];
+            for &gi in &picks {
+                let Some(b) = geoms[gi].hand_boxes.get(h) else {
+                    continue;
+                };
                 for c in 0..8 {
                     pts.push([
                         if c & 1 == 0 { b.lo[0] } else { b.hi[0] } as f64,
@@ -353,13 +450,13 @@ impl CameraRenderer {
                 }
             }
             if let Some(r) = self.project_rect(&pts) {
-                objs.push((Obj::Hand(h as u16), r));
+                self.mark(r, Obj::Hand(h as u16));
             }
         }
         if g0.ball.is_some() {
             pts.clear();
-            for g in &pick_times {
-                if let Some((c, r)) = g.ball {
+            for &gi in &picks {
+                if let Some((c, r)) = geoms[gi].ball {
                     for k in 0..8 {
                         pts.push([
                             (c[0] + if k & 1 == 0 { -r } else { r }) as f64,
@@ -370,23 +467,38 @@ impl CameraRenderer {
                 }
             }
             if let Some(r) = self.project_rect(&pts) {
-                objs.push((Obj::Ball, r));
+                self.mark(r, Obj::Ball);
             }
         }
-        for (o, r) in &objs {
-            let mut cands: Vec<Obj> = Vec::new();
-            for (i, s) in self.strips.iter().enumerate() {
-                if s.bbox.is_some_and(|b| b.overlaps(r)) {
-                    cands.push(Obj::Rod(i as u16));
-                }
-            }
-            for (o2, r2) in &objs {
-                if o2 == o || r2.overlaps(r) {
-                    cands.push(*o2);
-                }
-            }
-            self.rects.push((*r, cands));
+    }
+
+    fn tile_rect(&self, t: usize) -> Rect {
+        let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+        Rect {
+            x0: tx * TILE,
+            y0: ty * TILE,
+            x1: ((tx + 1) * TILE).min(self.w),
+            y1: ((ty + 1) * TILE).min(self.h),
         }
+    }
+
+    /// The range of rod `i`'s strip pixels that may show the marker in `geoms`.
+    fn marker_range(&self, i: usize, geoms: &[WorldGeom], len: f32) -> (usize, usize) {
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for g in [&geoms[0], &geoms[geoms.len() - 1]] {
+            let r = &g.rods[i];
+            let a = r.marker_start;
+            let b = r.marker_start + r.dir * len;
+            let m = 3.0 + r.hu_blur;
+            lo = lo.min(a.min(b) - m);
+            hi = hi.max(a.max(b) + m);
+        }
+        let px = &self.strips[i].px;
+        (
+            px.partition_point(|p| p.y < lo),
+            px.partition_point(|p| p.y <= hi),
+        )
     }
 
     /// Renders one frame into `out` (tightly packed, `width * bytes_per_pixel` per row).
@@ -405,109 +517,174 @@ impl CameraRenderer {
         noise_seed: u64,
         out: &mut [u8],
     ) {
-        // 1. Restore what moved last frame.
-        for r in std::mem::take(&mut self.dirty) {
+        let ch = self.ch;
+        let t_start = std::time::Instant::now();
+        // 1. Restore what changed last frame.
+        let prev_tiles = std::mem::take(&mut self.prev_tiles);
+        for &t in &prev_tiles {
+            let r = self.tile_rect(t as usize);
             for y in r.y0..r.y1 {
-                let a = (y * self.w + r.x0) * self.ch;
-                let b = (y * self.w + r.x1) * self.ch;
+                let a = (y * self.w + r.x0) * ch;
+                let b = (y * self.w + r.x1) * ch;
                 self.rad[a..b].copy_from_slice(&self.bg[a..b]);
             }
         }
-        // 2. Rod strips.
-        for i in 0..self.strips.len() {
-            match mode {
-                RenderMode::Fast => self.shade_strip_fast(i, &geoms[0], shader),
-                RenderMode::Quality => self.shade_strip_quality(i, geoms, shader),
+        self.prev_tiles = prev_tiles;
+        for &(i, a, b) in &self.prev_ranges {
+            for sp in &self.strips[i].px[a..b] {
+                let p = sp.idx as usize * ch;
+                self.rad[p..p + ch].copy_from_slice(&self.bg[p..p + ch]);
             }
         }
-        // 3. Figures, hands, ball.
-        self.collect_rects(geoms, shader);
-        let rects = std::mem::take(&mut self.rects);
-        for (r, cands) in &rects {
-            for y in r.y0..r.y1 {
-                for x in r.x0..r.x1 {
-                    self.shade_pixel(x, y, geoms, shader, cands, mode);
+        self.prev_ranges.clear();
+        let t_restore = t_start.elapsed();
+        // 2. Markers.
+        let len = shader.tex.len;
+        let mut marker_px = 0;
+        for i in 0..self.strips.len() {
+            let (a, b) = self.marker_range(i, geoms, len);
+            match mode {
+                RenderMode::Fast => self.shade_marker_fast(i, a, b, &geoms[0], shader),
+                RenderMode::Quality => {
+                    let cands = [Obj::Rod(i as u16)];
+                    for j in a..b {
+                        let p = self.strips[i].px[j].idx as usize;
+                        self.shade_pixel_quality(p % self.w, p / self.w, geoms, shader, &cands);
+                    }
                 }
             }
-            self.dirty.push(*r);
+            self.prev_ranges.push((i, a, b));
+            marker_px += b - a;
         }
-        self.rects = rects;
+        let t_markers = t_start.elapsed();
+        // 3. Figures, hands, ball.
+        self.collect_tiles(geoms, shader);
+        let touched = std::mem::take(&mut self.touched);
+        let mut cands: Vec<Obj> = Vec::new();
+        for &t in &touched {
+            let r = self.tile_rect(t as usize);
+            cands.clear();
+            cands.extend_from_slice(&self.tile_objs[t as usize]);
+            let rods = self.tile_rods[t as usize];
+            match mode {
+                RenderMode::Fast => {
+                    for y in r.y0..r.y1 {
+                        for x in r.x0..r.x1 {
+                            self.shade_object_fast(x, y, &geoms[0], shader, &cands, rods);
+                        }
+                    }
+                }
+                RenderMode::Quality => {
+                    for i in 0..64 {
+                        if rods & (1u64 << i) != 0 {
+                            cands.push(Obj::Rod(i as u16));
+                        }
+                    }
+                    for y in r.y0..r.y1 {
+                        for x in r.x0..r.x1 {
+                            self.shade_pixel_quality(x, y, geoms, shader, &cands);
+                        }
+                    }
+                }
+            }
+        }
+        self.prev_tiles.clear();
+        self.prev_tiles.extend_from_slice(&touched);
+        let object_tiles = touched.len();
+        self.touched = touched;
+        let t_objects = t_start.elapsed();
         // 4. Light level, glare, noise, quantisation.
         self.finish(brightness, glare, noise, noise_seed, out);
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+        self.stats = RenderStats {
+            restore_ms: ms(t_restore),
+            markers_ms: ms(t_markers - t_restore),
+            objects_ms: ms(t_objects - t_markers),
+            finish_ms: ms(t_start.elapsed() - t_objects),
+            marker_px,
+            object_tiles,
+            object_cands: self.touched.iter().map(|&t| self.tile_objs[t as usize].len()).sum(),
+        };
     }
 
-    fn shade_strip_fast(&mut self, i: usize, g: &WorldGeom, shader: &Shader) {
+    fn shade_marker_fast(&mut self, i: usize, a: usize, b: usize, g: &WorldGeom, shader: &Shader) {
         let rod = &g.rods[i];
-        let s = &self.strips[i];
         let ch = self.ch;
-        for j in 0..s.idx.len() {
-            let p = s.idx[j] as usize;
+        for sp in &self.strips[i].px[a..b] {
+            let p = sp.idx as usize;
             let sample = crate::geom::RodSample {
                 t: 0.0,
-                y: s.y[j],
-                a: s.a[j],
-                shade: s.shade[j],
-                spec: s.spec[j],
-                hu: s.hu[j],
-                hpsi: s.hpsi[j],
-                alpha: s.alpha[j],
+                y: sp.y,
+                a: sp.a,
+                shade: sp.shade,
+                spec: sp.spec,
+                hu: sp.hu,
+                hpsi: sp.hpsi,
+                alpha: sp.alpha,
             };
             let v = shader.rod_grey(rod, &sample);
-            let al = s.alpha[j];
             for c in 0..ch {
                 let k = p * ch + c;
-                self.rad[k] = al * v + (1.0 - al) * self.bg[k];
+                self.rad[k] = sp.alpha * v + (1.0 - sp.alpha) * self.bg0[k];
             }
         }
     }
 
-    fn shade_strip_quality(&mut self, i: usize, geoms: &[WorldGeom], shader: &Shader) {
-        let cands = [Obj::Rod(i as u16)];
-        let idx = std::mem::take(&mut self.strips[i].idx);
-        for &p in &idx {
-            let p = p as usize;
-            self.shade_pixel(
-                p % self.w,
-                p / self.w,
-                geoms,
-                shader,
-                &cands,
-                RenderMode::Quality,
-            );
+    /// Fast mode: one ray against the moving objects; written only where one is hit and no rod
+    /// is in front of it (elsewhere the image already holds the table, rods and markers).
+    fn shade_object_fast(
+        &mut self,
+        x: usize,
+        y: usize,
+        g: &WorldGeom,
+        shader: &Shader,
+        cands: &[Obj],
+        rods: u64,
+    ) {
+        let p = y * self.w + x;
+        let d = self.rays[p];
+        let Some(hit) = shader.trace(g, cands, self.origin, d, 0.0, self.bg_t[p], None) else {
+            return;
+        };
+        let mut m = rods;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let rod = &g.rods[i];
+            if let Some(s) = rod_sample(rod.x, rod.z, rod.r, self.origin, d, 0.0, 0.0) {
+                if s.t < hit.t && s.y >= rod.y_lo && s.y <= rod.y_hi {
+                    return;
+                }
+            }
         }
-        self.strips[i].idx = idx;
+        let l = self.light[p];
+        let mut rad = std::mem::take(&mut self.rad);
+        self.put(&mut rad, p, hit.rgb.map(|v| v * l));
+        self.rad = rad;
     }
 
-    /// Full trace of one pixel against `cands`, falling back to the background.
-    fn shade_pixel(
+    /// Quality mode: 4 x 4 sub-samples, each at its own time, against `cands`, over the table.
+    fn shade_pixel_quality(
         &mut self,
         x: usize,
         y: usize,
         geoms: &[WorldGeom],
         shader: &Shader,
         cands: &[Obj],
-        mode: RenderMode,
     ) {
         let p = y * self.w + x;
         let ch = self.ch;
         let light = self.light[p];
         let t_max = self.bg_t[p];
         let mut acc = [0.0f32; 3];
-        let foot = self.foot(x, y);
-        let n = match mode {
-            RenderMode::Fast => 1,
-            RenderMode::Quality => QSUB * QSUB,
-        };
+        let foot = self.foot(x, y) / QSUB as f32;
+        let n = QSUB * QSUB;
         for s in 0..n {
-            let (d, g, f) = if n == 1 {
-                (self.rays[p], &geoms[0], foot)
-            } else {
-                let fx = ((s % QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
-                let fy = ((s / QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
-                let ti = QTIME[s] * geoms.len() / (QSUB * QSUB);
-                (self.sub_ray(x, y, fx, fy), &geoms[ti], foot / QSUB as f32)
-            };
-            match shader.trace(g, cands, self.origin, d, f, t_max, None) {
+            let fx = ((s % QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
+            let fy = ((s / QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
+            let g = &geoms[QTIME[s] * geoms.len() / n];
+            let d = self.sub_ray(x, y, fx, fy);
+            match shader.trace(g, cands, self.origin, d, foot, t_max, None) {
                 Some(hit) => {
                     for c in 0..ch {
                         let v = if ch == 3 {
@@ -515,12 +692,12 @@ impl CameraRenderer {
                         } else {
                             self.pick(hit.rgb, x, y)
                         };
-                        acc[c] += hit.alpha * v * light + (1.0 - hit.alpha) * self.bg[p * ch + c];
+                        acc[c] += hit.alpha * v * light + (1.0 - hit.alpha) * self.bg0[p * ch + c];
                     }
                 }
                 None => {
                     for c in 0..ch {
-                        acc[c] += self.bg[p * ch + c];
+                        acc[c] += self.bg0[p * ch + c];
                     }
                 }
             }
@@ -554,25 +731,31 @@ impl CameraRenderer {
                         for (((o, &r), &n), &g) in row.iter_mut().zip(rad).zip(nz).zip(gr) {
                             let v = r * brightness + g * glare;
                             let s = (read2 + v.max(0.0) * inv_gain).sqrt();
-                            *o = (v + s * n + 0.5).clamp(0.0, 255.0) as u8;
+                            *o = quantise(v + s * n);
                         }
                     }
                     None => {
                         for ((o, &r), &n) in row.iter_mut().zip(rad).zip(nz) {
                             let v = r * brightness;
                             let s = (read2 + v.max(0.0) * inv_gain).sqrt();
-                            *o = (v + s * n + 0.5).clamp(0.0, 255.0) as u8;
+                            *o = quantise(v + s * n);
                         }
                     }
                 }
             } else {
                 for (i, (o, &r)) in row.iter_mut().zip(rad).enumerate() {
                     let g = glare_map.map(|m| m[y * rw + i]).unwrap_or(0.0);
-                    *o = (r * brightness + g * glare + 0.5).clamp(0.0, 255.0) as u8;
+                    *o = quantise(r * brightness + g * glare);
                 }
             }
         }
     }
+}
+
+/// Rounds to the nearest DN and clips to 0..255 (integer clamp: vectorises).
+#[inline(always)]
+fn quantise(v: f32) -> u8 {
+    ((v + 0.5) as i32).clamp(0, 255) as u8
 }
 
 /// A table of standard normal values for the noise (indexed at random offsets per row).

@@ -120,6 +120,12 @@ impl Simulation {
             }
         }
         let _ = marker;
+        if scene.rods.len() > 64 {
+            return Err(SimError::Config(format!(
+                "at most 64 rods are supported, the scene has {}",
+                scene.rods.len()
+            )));
+        }
         for c in &cameras {
             let ok = matches!(
                 c.pixel_format,
@@ -152,7 +158,7 @@ impl Simulation {
                 .iter()
                 .map(|c| {
                     let (sc, sh) = (&lit_scene, &shader);
-                    s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh))
+                    s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh, mode))
                 })
                 .collect();
             handles
@@ -244,6 +250,11 @@ impl Simulation {
                 count: self.ctx.cameras.len(),
             })?;
         self.ctx.render_frame(r, frame_index, camera_index, out)
+    }
+
+    /// Timing of the last frame rendered for camera `camera_index`.
+    pub fn last_render_stats(&self, camera_index: usize) -> Option<crate::render::RenderStats> {
+        self.renderers.get(camera_index).map(|r| r.stats)
     }
 
     /// Renders the reference frame of camera `camera_index`: every rod at its reference pose,
