@@ -15,8 +15,8 @@ pub struct Args {
     /// Scenario to run.
     #[arg(long, default_value = "gameplay")]
     pub scenario: String,
-    /// Number of frames per camera (200 fps: 1000 frames are 5 s of play).
-    #[arg(long, default_value_t = 1000)]
+    /// Number of frames per camera (200 fps: 600 frames are 3 s of play).
+    #[arg(long, default_value_t = 600)]
     pub frames: usize,
     /// Seed.
     #[arg(long, default_value_t = 7)]

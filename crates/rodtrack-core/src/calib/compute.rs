@@ -288,8 +288,7 @@ pub fn calibrate_rod(
     }
 
     // Direction of the print across the rod: Gray code read on both sides of the centre line.
-    let sigma = print_direction(frame, &knots, &marker, s_ref)
-        .ok_or_else(|| fail("the Gray code could not be read across the rod".into()))?;
+    let vote = print_direction(frame, &knots, &marker, s_ref);
 
     let mut cal = RodCalibration {
         rod,
@@ -301,13 +300,35 @@ pub fn calibrate_rod(
         path_points_px: inputs.path_points_px.clone(),
         knots,
         enhanced: EnhancedParams {
-            phase_sign: sigma,
+            phase_sign: vote.unwrap_or(1),
             phase_offset_steps: 0.0,
             angle_offset_rad: 0.0,
         },
         paper: None,
         residuals: Residuals::default(),
     };
+    // When the vote across the rod is undecided, take the sign whose phase agrees better with
+    // the Gray code in the reference frame.
+    let sigma = match vote {
+        Some(s) => s,
+        None => {
+            let mut best = (f64::MAX, 1);
+            for s in [1, -1] {
+                cal.enhanced.phase_sign = s;
+                let mut t = RodTracker::new(&cal, frame.width(), frame.height(), Mode::Enhanced)?;
+                let r = t.process(frame)?;
+                let d =
+                    (r.theta_steps - (r.gray_step as f64 + 0.5)).rem_euclid(marker.steps() as f64);
+                let d = d.min(marker.steps() as f64 - d);
+                if d < best.0 {
+                    best = (d, s);
+                }
+            }
+            warnings.push("print direction decided from the code/phase agreement only".into());
+            best.1
+        }
+    };
+    cal.enhanced.phase_sign = sigma;
     // Enhanced offsets from the reference pose.
     let mut tr = RodTracker::new(&cal, frame.width(), frame.height(), Mode::Enhanced)?;
     let r = tr.process(frame)?;
@@ -448,7 +469,7 @@ fn silhouette(frame: &FrameView, knots: &Knots, s: f64) -> Option<(f64, f64)> {
 /// at several angles across the rod at the reference pose.
 fn print_direction(frame: &FrameView, knots: &Knots, marker: &Marker, s_ref: f64) -> Option<i32> {
     let mut codes = Vec::new();
-    for deg in (-45..=45).step_by(15) {
+    for deg in (-50..=50).step_by(5) {
         let d = (deg as f64).to_radians();
         let mut samples = [0.0f32; 8];
         let mut lo = f32::MAX;
