@@ -7,12 +7,6 @@ use rodtrack_core::PixelFormat;
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 use std::time::Instant;
 
-/// CPU time of this thread, ns (Linux `schedstat`), to see through other load on the machine.
-fn thread_cpu_ns() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    s.split_whitespace().next()?.parse().ok()
-}
-
 fn main() {
     let args: Vec<String> = std::env::args()
         .skip(1)
@@ -47,19 +41,14 @@ fn main() {
     // Spread the frames over the scenario so that hands, kicks and spins are included.
     let step = (frames / n.max(1)).max(1);
     let mut times = Vec::with_capacity(n);
-    let mut cpu = Vec::with_capacity(n);
     let mut phases = [0.0f64; 4];
     let mut tiles = 0usize;
     let mut cands = 0usize;
     for k in 0..n {
         let fi = (k * step) % frames.max(1);
-        let c0 = thread_cpu_ns();
         let t = Instant::now();
         sim.render(fi, 0, &mut buf).expect("render");
         times.push(t.elapsed().as_secs_f64() * 1e3);
-        if let (Some(a), Some(b)) = (c0, thread_cpu_ns()) {
-            cpu.push((b - a) as f64 * 1e-6);
-        }
         if let Some(s) = sim.last_render_stats(0) {
             phases[0] += s.restore_ms;
             phases[1] += s.markers_ms;
@@ -80,14 +69,6 @@ fn main() {
         phases[3] / nf
     );
     times.sort_by(f64::total_cmp);
-    cpu.sort_by(f64::total_cmp);
-    if !cpu.is_empty() {
-        let m = cpu[cpu.len() / 2];
-        println!(
-            "thread CPU time: median {m:.3} ms/frame ({:.0} frames/s on one free core)",
-            1e3 / m
-        );
-    }
     let med = times[times.len() / 2];
     let p90 = times[times.len() * 9 / 10];
     println!(

@@ -297,6 +297,22 @@ pub(crate) fn rod_sample(
     })
 }
 
+/// Ray against an infinite cylinder along `y`: entry distance and world `y` of the hit.
+#[inline]
+pub(crate) fn rod_hit(x: f32, z: f32, r: f32, o: V3, d: V3) -> Option<(f32, f32)> {
+    let ox = o[0] - x;
+    let oz = o[2] - z;
+    let a = d[0] * d[0] + d[2] * d[2];
+    let b = ox * d[0] + oz * d[2];
+    let c = ox * ox + oz * oz - r * r;
+    let disc = b * b - a * c;
+    if disc <= 0.0 || a < 1e-12 {
+        return None;
+    }
+    let t = (-b - disc.sqrt()) / a;
+    (t > 0.0).then(|| (t, o[1] + t * d[1]))
+}
+
 /// Ray against an axis-aligned box: entry distance and the entry face's axis and sign.
 #[inline]
 pub(crate) fn ray_box(o: V3, inv: V3, lo: V3, hi: V3) -> Option<(f32, usize, f32)> {
@@ -715,6 +731,15 @@ impl Table {
             floor: f(c.floor),
             ambient: scene.lighting.ambient as f32,
         }
+    }
+
+    /// Distance to the nearest wall along a ray (infinite if none).
+    pub fn trace_walls(&self, o: V3, d: V3) -> f32 {
+        let inv = inv_dir(d);
+        self.walls
+            .iter()
+            .filter_map(|b| ray_box(o, inv, b.lo, b.hi).map(|h| h.0))
+            .fold(f32::INFINITY, f32::min)
     }
 
     /// (distance, colour) of the static background along a ray.

@@ -34,6 +34,7 @@ pub mod cameras;
 pub mod error;
 pub mod geom;
 pub mod motion;
+mod raster;
 pub mod record;
 pub mod render;
 pub mod rng;

@@ -6,8 +6,10 @@
 //! coverage. Quality mode: 4 x 4 sub-samples per pixel, each at its own time in the exposure.
 
 use crate::cameras::SimCamera;
-use crate::geom::{rod_sample, Obj, Shader, Table, WorldGeom, V3};
+use crate::geom::{rod_hit, rod_sample, Obj, Shader, Table, WorldGeom, V3};
+use crate::raster::{box_faces, scan, Quad};
 use crate::rng::{hash_words, Rng};
+use crate::scene::Team;
 use crate::scene::{Lighting, SceneConfig};
 use rodtrack_core::PixelFormat;
 
@@ -58,6 +60,8 @@ impl Rect {
 #[derive(Debug, Clone, Copy)]
 struct StripPx {
     idx: u32,
+    /// The table behind this pixel (per channel; only the first is used for mono/Bayer).
+    bg0: [f32; 3],
     y: f32,
     a: f32,
     shade: f32,
@@ -86,14 +90,16 @@ pub(crate) struct CameraRenderer {
     ch: usize,
     bayer: Option<[u8; 4]>,
     origin: V3,
-    rays: Vec<V3>,
+    /// Rays, pixel footprints and light on a coarse grid (fits in cache), interpolated.
+    grid: RayGrid,
+    /// The static table, for the walls that may hide moving things.
+    table: Table,
+    /// True for tiles where a wall is seen (elsewhere nothing static is in front of anything).
+    tile_wall: Vec<bool>,
     /// Table only (DN at brightness 1), `ch` values per pixel: what a rod is blended over.
     bg0: Vec<f32>,
     /// Table plus bare steel rods: the image with nothing moving and no marker.
     bg: Vec<f32>,
-    bg_t: Vec<f32>,
-    /// Light factor per pixel (gradient times DN scale).
-    light: Vec<f32>,
     glare: Option<Vec<f32>>,
     strips: Vec<Strip>,
     /// Bit `i` set when rod `i`'s strip touches the tile.
@@ -107,8 +113,19 @@ pub(crate) struct CameraRenderer {
     /// Scratch: objects per tile, touched tiles.
     tile_objs: Vec<Vec<Obj>>,
     touched: Vec<u32>,
+    /// Rod index + 1 per pixel where a rod is seen (0: none).
+    rod_mask: Vec<u8>,
+    /// Noisy, quantised copies of the still image (brightness 1, no glare).
+    noisy_bg: Vec<Vec<u8>>,
+    /// Scratch for the rasteriser.
+    quads: Vec<Quad>,
+    spans: Vec<(u32, u32, u32)>,
+    tile_dirty: Vec<bool>,
     pub stats: RenderStats,
 }
+
+/// Number of noisy copies of the still image kept for the fast path.
+const NOISY_COPIES: usize = 8;
 
 /// Where the time of the last rendered frame went.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -141,6 +158,7 @@ impl CameraRenderer {
         lighting: &Lighting,
         shader: &Shader,
         mode: RenderMode,
+        noise: &[f32],
     ) -> Self {
         let (w, h) = (cam.camera.width, cam.camera.height);
         let bayer = bayer_pattern(cam.pixel_format);
@@ -151,33 +169,22 @@ impl CameraRenderer {
         };
         let c = cam.camera.pose.centre_world();
         let origin = c.map(|v| v as f32);
-        // Ray table: exact undistortion per pixel.
-        let k = &cam.camera.intrinsics;
-        let mut rays = Vec::with_capacity(w * h);
-        for y in 0..h {
-            for x in 0..w {
-                let (nx, ny) = k.pixel_to_normalized(x as f64, y as f64);
-                rays.push(norm(cam.camera.pose.dir_to_world([nx, ny, 1.0])));
-            }
-        }
         let dn_scale = 235.0 * cam.brightness * cam.exposure_us / 500.0;
-        // Light map from where each pixel's ray meets the rods' plane.
+        // Light: a gradient in the rods' plane.
         let (sg, cg) = lighting.gradient_dir_rad.sin_cos();
         let hl = 0.5 * scene.field_length_mm;
         let hw = 0.5 * scene.field_width_mm;
         let extent = hl * cg.abs() + hw * sg.abs();
         let lnr = lighting.gradient_ratio.max(1e-6).ln();
         let plane_z = scene.rods.first().map(|r| r.z_mm).unwrap_or(80.0);
-        let light: Vec<f32> = rays
-            .iter()
-            .map(|d| {
-                let t = (plane_z - c[2]) / d[2] as f64;
-                let x = c[0] + t * d[0] as f64 - hl;
-                let y = c[1] + t * d[1] as f64 - hw;
-                let s = ((x * cg + y * sg) / extent).clamp(-1.5, 1.5);
-                (dn_scale * (0.5 * lnr * s).exp()) as f32
-            })
-            .collect();
+        let light_of = |d: [f64; 3]| {
+            let t = (plane_z - c[2]) / d[2];
+            let x = c[0] + t * d[0] - hl;
+            let y = c[1] + t * d[1] - hw;
+            let s = ((x * cg + y * sg) / extent).clamp(-1.5, 1.5);
+            (dn_scale * (0.5 * lnr * s).exp()) as f32
+        };
+        let grid = RayGrid::new(cam, &light_of);
         let glare = lighting.glare.and_then(|g| {
             let (u, v) = cam.camera.project(g.at_mm)?;
             let inv = 1.0 / (2.0 * g.sigma_px * g.sigma_px);
@@ -202,11 +209,11 @@ impl CameraRenderer {
             ch,
             bayer,
             origin,
-            rays,
+            grid,
+            table: Table::new(scene),
+            tile_wall: vec![false; tiles_x * tiles_y],
             bg0: vec![0.0; w * h * ch],
             bg: Vec::new(),
-            bg_t: vec![0.0; w * h],
-            light,
             glare,
             strips: Vec::new(),
             tile_rods: vec![0; tiles_x * tiles_y],
@@ -216,54 +223,37 @@ impl CameraRenderer {
             prev_ranges: Vec::new(),
             tile_objs: vec![Vec::new(); tiles_x * tiles_y],
             touched: Vec::new(),
+            rod_mask: vec![0; w * h],
+            noisy_bg: Vec::new(),
+            quads: Vec::new(),
+            spans: Vec::new(),
+            tile_dirty: vec![false; tiles_x * tiles_y],
             stats: RenderStats::default(),
         };
         let sub = match mode {
             RenderMode::Fast => 2,
             RenderMode::Quality => QSUB,
         };
-        r.render_background(&Table::new(scene), sub);
-        r.build_strips(scene, shader);
+        r.build_static(scene, shader, sub, &light_of);
         r.rad = r.bg.clone();
+        r.build_noisy_copies(noise, 0x5EED_B6);
         r
     }
 
-    /// Angular size of pixel `(x, y)` (from the ray table).
+    /// The ray through sub-pixel position `(x + fx, y + fy)`, its angular size and light.
     #[inline]
-    fn foot(&self, x: usize, y: usize) -> f32 {
-        let i = y * self.w + x;
-        let j = if x + 1 < self.w { i + 1 } else { i - 1 };
-        let (a, b) = (self.rays[i], self.rays[j]);
-        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    fn sub_ray(&self, x: usize, y: usize, fx: f32, fy: f32) -> (V3, f32, f32) {
+        self.grid.sample(x as f32 + fx, y as f32 + fy)
     }
 
-    /// The ray through sub-pixel position `(x + fx, y + fy)` (`fx, fy` in `[-0.5, 0.5]`),
-    /// bilinear in the ray table.
+    /// Nearest wall along a ray from pixel tile `t` (infinite where no wall is seen).
     #[inline]
-    fn sub_ray(&self, x: usize, y: usize, fx: f32, fy: f32) -> V3 {
-        let x1 = if fx >= 0.0 {
-            (x + 1).min(self.w - 1)
+    fn t_max(&self, x: usize, y: usize, d: V3) -> f32 {
+        if self.tile_wall[(y / TILE) * self.tiles_x + x / TILE] {
+            self.table.trace_walls(self.origin, d)
         } else {
-            x.saturating_sub(1)
-        };
-        let y1 = if fy >= 0.0 {
-            (y + 1).min(self.h - 1)
-        } else {
-            y.saturating_sub(1)
-        };
-        let (ax, ay) = (fx.abs(), fy.abs());
-        let r00 = self.rays[y * self.w + x];
-        let r10 = self.rays[y * self.w + x1];
-        let r01 = self.rays[y1 * self.w + x];
-        let r11 = self.rays[y1 * self.w + x1];
-        let mut d = [0.0f32; 3];
-        for k in 0..3 {
-            d[k] = (r00[k] * (1.0 - ax) + r10[k] * ax) * (1.0 - ay)
-                + (r01[k] * (1.0 - ax) + r11[k] * ax) * ay;
+            f32::INFINITY
         }
-        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        [d[0] / n, d[1] / n, d[2] / n]
     }
 
     #[inline]
@@ -284,86 +274,111 @@ impl CameraRenderer {
         }
     }
 
-    fn render_background(&mut self, table: &Table, sub: usize) {
+    /// Renders the table (supersampled), finds every rod's pixels (exact rays) and bakes the
+    /// bare steel rods into `bg`.
+    fn build_static(
+        &mut self,
+        scene: &SceneConfig,
+        shader: &Shader,
+        sub: usize,
+        light_of: &dyn Fn([f64; 3]) -> f32,
+    ) {
         let n = sub * sub;
+        let amb = shader.ambient;
+        let steel = shader.steel;
+        let ss = shader.steel_spec;
+        let ch = self.ch;
         let mut bg0 = std::mem::take(&mut self.bg0);
+        let mut bg = bg0.clone();
+        let mut strips: Vec<Strip> = vec![Strip::default(); scene.rods.len()];
+        let rods: Vec<(f32, f32, f32)> = scene
+            .rods
+            .iter()
+            .map(|rc| (rc.x_mm as f32, rc.z_mm as f32, rc.radius_mm() as f32))
+            .collect();
+        let k = self.cam.camera.intrinsics;
+        let pose = self.cam.camera.pose;
         for y in 0..self.h {
             for x in 0..self.w {
                 let p = y * self.w + x;
+                // Table, supersampled.
                 let mut acc = [0.0f32; 3];
                 for s in 0..n {
                     let fx = ((s % sub) as f32 + 0.5) / sub as f32 - 0.5;
                     let fy = ((s / sub) as f32 + 0.5) / sub as f32 - 0.5;
-                    let d = self.sub_ray(x, y, fx, fy);
-                    let (_, c) = table.trace(self.origin, d);
+                    let (d, _, _) = self.sub_ray(x, y, fx, fy);
+                    let (_, c) = self.table.trace(self.origin, d);
                     for k in 0..3 {
                         acc[k] += c[k];
                     }
                 }
-                let (t, _) = table.trace(self.origin, self.rays[p]);
-                self.bg_t[p] = t;
-                let rgb = acc.map(|v| v / n as f32 * self.light[p]);
+                // Exact ray of the pixel centre.
+                let (nx, ny) = k.pixel_to_normalized(x as f64, y as f64);
+                let dw = pose.dir_to_world([nx, ny, 1.0]);
+                let light = light_of(dw);
+                let d = norm(dw);
+                let (t_bg, _) = self.table.trace(self.origin, d);
+                if t_bg < f32::INFINITY && self.table.trace_walls(self.origin, d) <= t_bg {
+                    self.tile_wall[(y / TILE) * self.tiles_x + x / TILE] = true;
+                }
+                let rgb = acc.map(|v| v / n as f32 * light);
                 self.put(&mut bg0, p, rgb);
-            }
-        }
-        self.bg0 = bg0;
-    }
-
-    /// Finds every rod's pixels and bakes the bare steel rods into `bg`.
-    fn build_strips(&mut self, scene: &SceneConfig, shader: &Shader) {
-        let amb = shader.ambient;
-        let mut bg = self.bg0.clone();
-        let steel = shader.steel;
-        let ss = shader.steel_spec;
-        for (ri, rc) in scene.rods.iter().enumerate() {
-            let (x, z, r) = (rc.x_mm as f32, rc.z_mm as f32, rc.radius_mm() as f32);
-            let mut s = Strip::default();
-            let mut bb: Option<Rect> = None;
-            for py in 0..self.h {
-                for px in 0..self.w {
-                    let p = py * self.w + px;
-                    let foot = self.foot(px, py);
-                    let Some(h) = rod_sample(x, z, r, self.origin, self.rays[p], foot, amb) else {
+                let (_, foot, _) = self.sub_ray(x, y, 0.0, 0.0);
+                for (ri, &(rx, rz, rr)) in rods.iter().enumerate() {
+                    let Some(h) = rod_sample(rx, rz, rr, self.origin, d, foot, amb) else {
                         continue;
                     };
-                    if h.t >= self.bg_t[p] {
+                    if h.t >= t_bg {
                         continue;
                     }
+                    let mut b0 = [0.0f32; 3];
+                    b0[..ch].copy_from_slice(&bg0[p * ch..p * ch + ch]);
                     let sp = StripPx {
                         idx: p as u32,
+                        bg0: b0,
                         y: h.y,
                         a: h.a,
-                        shade: h.shade * self.light[p],
-                        spec: h.spec * self.light[p],
+                        shade: h.shade * light,
+                        spec: h.spec * light,
                         hu: h.hu,
                         hpsi: h.hpsi,
                         alpha: h.alpha,
                     };
                     let v = sp.shade * steel + sp.spec * ss;
-                    for c in 0..self.ch {
-                        let k = p * self.ch + c;
-                        bg[k] = sp.alpha * v + (1.0 - sp.alpha) * bg[k];
+                    for c in 0..ch {
+                        bg[p * ch + c] = sp.alpha * v + (1.0 - sp.alpha) * b0[c];
                     }
-                    s.px.push(sp);
-                    let b = bb.get_or_insert(Rect {
-                        x0: px,
-                        y0: py,
-                        x1: px + 1,
-                        y1: py + 1,
+                    strips[ri].px.push(sp);
+                    self.rod_mask[p] = (ri + 1).min(255) as u8;
+                    let b = strips[ri].bbox.get_or_insert(Rect {
+                        x0: x,
+                        y0: y,
+                        x1: x + 1,
+                        y1: y + 1,
                     });
-                    b.x0 = b.x0.min(px);
-                    b.x1 = b.x1.max(px + 1);
-                    b.y0 = b.y0.min(py);
-                    b.y1 = b.y1.max(py + 1);
+                    b.x0 = b.x0.min(x);
+                    b.x1 = b.x1.max(x + 1);
+                    b.y0 = b.y0.min(y);
+                    b.y1 = b.y1.max(y + 1);
                     if ri < 64 {
-                        self.tile_rods[(py / TILE) * self.tiles_x + px / TILE] |= 1u64 << ri;
+                        self.tile_rods[(y / TILE) * self.tiles_x + x / TILE] |= 1u64 << ri;
+                    }
+                }
+                if !strips
+                    .iter()
+                    .any(|s| s.px.last().is_some_and(|q| q.idx == p as u32))
+                {
+                    for c in 0..ch {
+                        bg[p * ch + c] = bg0[p * ch + c];
                     }
                 }
             }
-            s.px.sort_by(|a, b| a.y.total_cmp(&b.y));
-            s.bbox = bb;
-            self.strips.push(s);
         }
+        for s in &mut strips {
+            s.px.sort_by(|a, b| a.y.total_cmp(&b.y));
+        }
+        self.strips = strips;
+        self.bg0 = bg0;
         self.bg = bg;
     }
 
@@ -530,6 +545,7 @@ impl CameraRenderer {
             }
         }
         self.prev_tiles = prev_tiles;
+        self.prev_tiles.clear();
         for &(i, a, b) in &self.prev_ranges {
             for sp in &self.strips[i].px[a..b] {
                 let p = sp.idx as usize * ch;
@@ -558,6 +574,22 @@ impl CameraRenderer {
         }
         let t_markers = t_start.elapsed();
         // 3. Figures, hands, ball.
+        if mode == RenderMode::Fast {
+            self.paint_objects(&geoms[0], shader);
+            let t_objects = t_start.elapsed();
+            self.finish(brightness, glare, noise, noise_seed, out);
+            let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+            self.stats = RenderStats {
+                restore_ms: ms(t_restore),
+                markers_ms: ms(t_markers - t_restore),
+                objects_ms: ms(t_objects - t_markers),
+                finish_ms: ms(t_start.elapsed() - t_objects),
+                marker_px,
+                object_tiles: self.prev_tiles.len(),
+                object_cands: self.quads.len(),
+            };
+            return;
+        }
         self.collect_tiles(geoms, shader);
         let touched = std::mem::take(&mut self.touched);
         let mut cands: Vec<Obj> = Vec::new();
@@ -603,8 +635,155 @@ impl CameraRenderer {
             finish_ms: ms(t_start.elapsed() - t_objects),
             marker_px,
             object_tiles,
-            object_cands: self.touched.iter().map(|&t| self.tile_objs[t as usize].len()).sum(),
+            object_cands: self
+                .touched
+                .iter()
+                .map(|&t| self.tile_objs[t as usize].len())
+                .sum(),
         };
+    }
+
+    /// Fast mode: rasterises figures, hands and the ball over the image; marks their tiles.
+    fn paint_objects(&mut self, g: &WorldGeom, shader: &Shader) {
+        let mut quads = std::mem::take(&mut self.quads);
+        quads.clear();
+        let cam = self.cam.camera;
+        let o = self.origin.map(|v| v as f64);
+        let amb = shader.ambient;
+        for rod in &g.rods {
+            let (c, s) = (rod.cphi, rod.sphi);
+            let col = match rod.team {
+                Team::Red => shader.red,
+                Team::Blue => shader.blue,
+            };
+            let rot = |n: V3| [n[0] * c + n[2] * s, n[1], -n[0] * s + n[2] * c];
+            for &fy in &rod.figs {
+                let to_world = |l: V3| {
+                    [
+                        rod.x + l[0] * c + l[2] * s,
+                        fy + l[1],
+                        rod.z - l[0] * s + l[2] * c,
+                    ]
+                };
+                for (lo, hi) in &shader.figure {
+                    box_faces(&cam, o, *lo, *hi, &to_world, &rot, col, amb, &mut quads);
+                }
+            }
+        }
+        let id = |v: V3| v;
+        for b in &g.hand_boxes {
+            box_faces(&cam, o, b.lo, b.hi, &id, &id, shader.skin, amb, &mut quads);
+        }
+        if let Some((c, r)) = g.ball {
+            let cd = [c[0] as f64, c[1] as f64, c[2] as f64];
+            if let (Some((u, v)), Some((u2, _))) = (
+                cam.project(cd),
+                cam.project([cd[0] + r as f64, cd[1], cd[2]]),
+            ) {
+                let dv = [
+                    c[0] - self.origin[0],
+                    c[1] - self.origin[1],
+                    c[2] - self.origin[2],
+                ];
+                let dist = (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt() - r;
+                quads.push(Quad {
+                    v: [
+                        [u as f32, v as f32],
+                        [(u2 - u).abs() as f32 + 0.5, 0.0],
+                        [0.0; 2],
+                        [0.0; 2],
+                    ],
+                    dist,
+                    rgb: shader.ball,
+                    n: [0.0, 0.0, 1.0],
+                    c,
+                    disc: true,
+                });
+            }
+        }
+        quads.sort_by(|a, b| b.dist.total_cmp(&a.dist));
+        let mut spans = std::mem::take(&mut self.spans);
+        let mut rad = std::mem::take(&mut self.rad);
+        let (ch, w, bayer) = (self.ch, self.w, self.bayer);
+        for q in &quads {
+            spans.clear();
+            scan(q, self.w, self.h, &mut spans);
+            if spans.is_empty() {
+                continue;
+            }
+            let (u, v) = if q.disc {
+                (q.v[0][0], q.v[0][1])
+            } else {
+                (
+                    0.25 * (q.v[0][0] + q.v[1][0] + q.v[2][0] + q.v[3][0]),
+                    0.25 * (q.v[0][1] + q.v[1][1] + q.v[2][1] + q.v[3][1]),
+                )
+            };
+            let (_, _, light) = self.grid.sample(u, v);
+            let val = q.rgb.map(|c| c * light);
+            for &(y, x0, x1) in &spans {
+                let y = y as usize;
+                let ty = y / TILE;
+                for t in
+                    ty * self.tiles_x + x0 as usize / TILE..=ty * self.tiles_x + x1 as usize / TILE
+                {
+                    if !self.tile_dirty[t] {
+                        self.tile_dirty[t] = true;
+                        self.prev_tiles.push(t as u32);
+                    }
+                }
+                for x in x0 as usize..=x1 as usize {
+                    let p = y * self.w + x;
+                    let rm = self.rod_mask[p];
+                    let wall = self.tile_wall[ty * self.tiles_x + x / TILE];
+                    if rm != 0 || wall {
+                        let (d, _, _) = self.grid.sample(x as f32, y as f32);
+                        let nd = q.n[0] * d[0] + q.n[1] * d[1] + q.n[2] * d[2];
+                        let t_face = if q.disc || nd.abs() < 1e-6 {
+                            q.dist
+                        } else {
+                            (q.n[0] * (q.c[0] - self.origin[0])
+                                + q.n[1] * (q.c[1] - self.origin[1])
+                                + q.n[2] * (q.c[2] - self.origin[2]))
+                                / nd
+                        };
+                        if rm != 0 {
+                            let rod = &g.rods[rm as usize - 1];
+                            if let Some((t, yh)) = rod_hit(rod.x, rod.z, rod.r, self.origin, d) {
+                                if t < t_face && yh >= rod.y_lo && yh <= rod.y_hi {
+                                    continue;
+                                }
+                            }
+                        }
+                        if wall && self.table.trace_walls(self.origin, d) < t_face {
+                            continue;
+                        }
+                    }
+                    let rgb = if q.disc {
+                        let dx = x as f32 - u;
+                        let dy = y as f32 - v;
+                        let r = q.v[1][0];
+                        let nz = (1.0 - (dx * dx + dy * dy) / (r * r)).max(0.0).sqrt();
+                        let sh = amb + (1.0 - amb) * nz;
+                        val.map(|c| c * sh)
+                    } else {
+                        val
+                    };
+                    match (ch, bayer) {
+                        (3, _) => rad[p * 3..p * 3 + 3].copy_from_slice(&rgb),
+                        (_, Some(bp)) => rad[p] = rgb[bp[(y & 1) * 2 + (x & 1)] as usize],
+                        _ => rad[p] = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2],
+                    }
+                }
+            }
+        }
+        self.rad = rad;
+        let _ = w;
+        for &t in &self.prev_tiles {
+            self.tile_dirty[t as usize] = false;
+        }
+        self.spans = spans;
+        self.quads = quads;
     }
 
     fn shade_marker_fast(&mut self, i: usize, a: usize, b: usize, g: &WorldGeom, shader: &Shader) {
@@ -625,7 +804,7 @@ impl CameraRenderer {
             let v = shader.rod_grey(rod, &sample);
             for c in 0..ch {
                 let k = p * ch + c;
-                self.rad[k] = sp.alpha * v + (1.0 - sp.alpha) * self.bg0[k];
+                self.rad[k] = sp.alpha * v + (1.0 - sp.alpha) * sp.bg0[c];
             }
         }
     }
@@ -642,8 +821,9 @@ impl CameraRenderer {
         rods: u64,
     ) {
         let p = y * self.w + x;
-        let d = self.rays[p];
-        let Some(hit) = shader.trace(g, cands, self.origin, d, 0.0, self.bg_t[p], None) else {
+        let (d, _, l) = self.sub_ray(x, y, 0.0, 0.0);
+        let t_max = self.t_max(x, y, d);
+        let Some(hit) = shader.trace(g, cands, self.origin, d, 0.0, t_max, None) else {
             return;
         };
         let mut m = rods;
@@ -651,13 +831,12 @@ impl CameraRenderer {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
             let rod = &g.rods[i];
-            if let Some(s) = rod_sample(rod.x, rod.z, rod.r, self.origin, d, 0.0, 0.0) {
-                if s.t < hit.t && s.y >= rod.y_lo && s.y <= rod.y_hi {
+            if let Some((t, yh)) = rod_hit(rod.x, rod.z, rod.r, self.origin, d) {
+                if t < hit.t && yh >= rod.y_lo && yh <= rod.y_hi {
                     return;
                 }
             }
         }
-        let l = self.light[p];
         let mut rad = std::mem::take(&mut self.rad);
         self.put(&mut rad, p, hit.rgb.map(|v| v * l));
         self.rad = rad;
@@ -674,16 +853,15 @@ impl CameraRenderer {
     ) {
         let p = y * self.w + x;
         let ch = self.ch;
-        let light = self.light[p];
-        let t_max = self.bg_t[p];
         let mut acc = [0.0f32; 3];
-        let foot = self.foot(x, y) / QSUB as f32;
         let n = QSUB * QSUB;
         for s in 0..n {
             let fx = ((s % QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
             let fy = ((s / QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
             let g = &geoms[QTIME[s] * geoms.len() / n];
-            let d = self.sub_ray(x, y, fx, fy);
+            let (d, foot, light) = self.sub_ray(x, y, fx, fy);
+            let foot = foot / QSUB as f32;
+            let t_max = self.t_max(x, y, d);
             match shader.trace(g, cands, self.origin, d, foot, t_max, None) {
                 Some(hit) => {
                     for c in 0..ch {
@@ -707,8 +885,7 @@ impl CameraRenderer {
         }
     }
 
-    fn finish(&self, brightness: f32, glare: f32, noise: &[f32], seed: u64, out: &mut [u8]) {
-        let rw = self.w * self.ch;
+    fn noise_params(&self) -> (f32, f32) {
         let gain = self.cam.noise.gain_e_per_dn;
         let inv_gain = if gain.is_finite() && gain > 0.0 {
             (1.0 / gain) as f32
@@ -716,6 +893,86 @@ impl CameraRenderer {
             0.0
         };
         let read2 = (self.cam.noise.read_noise_dn * self.cam.noise.read_noise_dn) as f32;
+        (inv_gain, read2)
+    }
+
+    /// Makes the noisy copies of the still image used by the fast path of [`Self::finish`].
+    fn build_noisy_copies(&mut self, noise: &[f32], seed: u64) {
+        let n = if self.cam.noise.is_none() {
+            1
+        } else {
+            NOISY_COPIES
+        };
+        let rad = std::mem::replace(&mut self.rad, self.bg.clone());
+        let mut copies = Vec::with_capacity(n);
+        for k in 0..n {
+            let mut out = vec![0u8; self.w * self.h * self.ch];
+            self.finish_full(1.0, 0.0, noise, hash_words(&[seed, k as u64]), &mut out);
+            copies.push(out);
+        }
+        self.rad = rad;
+        self.noisy_bg = copies;
+    }
+
+    /// Light level, glare, noise and quantisation. When the light is as in the still image,
+    /// rows come from a noisy copy of it (chosen at random per row) and only the pixels drawn
+    /// this frame (marker ranges and object tiles) get fresh noise.
+    fn finish(&mut self, brightness: f32, glare: f32, noise: &[f32], seed: u64, out: &mut [u8]) {
+        let still = brightness == 1.0 && (glare <= 0.0 || self.glare.is_none());
+        if !still {
+            self.finish_full(brightness, glare, noise, seed, out);
+            return;
+        }
+        let rw = self.w * self.ch;
+        let mut rng = Rng::new(hash_words(&[seed, 0xC0_B1E5]));
+        let nc = self.noisy_bg.len() as u64;
+        for (y, row) in out.chunks_exact_mut(rw).take(self.h).enumerate() {
+            let v = rng.below(nc) as usize;
+            row.copy_from_slice(&self.noisy_bg[v][y * rw..(y + 1) * rw]);
+        }
+        let (inv_gain, read2) = self.noise_params();
+        let noisy = !self.cam.noise.is_none() && noise.len() > 2 * rw;
+        let span = (noise.len().saturating_sub(rw)).max(1) as u64;
+        let ch = self.ch;
+        for &t in &self.prev_tiles {
+            let r = self.tile_rect(t as usize);
+            for y in r.y0..r.y1 {
+                let a = (y * self.w + r.x0) * ch;
+                let b = (y * self.w + r.x1) * ch;
+                let off = rng.below(span) as usize;
+                let nz = if noisy {
+                    &noise[off..off + (b - a)]
+                } else {
+                    &[][..]
+                };
+                quantise_span(&self.rad[a..b], nz, &mut out[a..b], 1.0, read2, inv_gain);
+            }
+        }
+        for &(i, a, b) in &self.prev_ranges {
+            let off = rng.below(span) as usize;
+            for (j, sp) in self.strips[i].px[a..b].iter().enumerate() {
+                let p = sp.idx as usize * ch;
+                let nz = if noisy {
+                    &noise[(off + j * ch) % span as usize..][..ch]
+                } else {
+                    &[][..]
+                };
+                quantise_span(
+                    &self.rad[p..p + ch],
+                    nz,
+                    &mut out[p..p + ch],
+                    1.0,
+                    read2,
+                    inv_gain,
+                );
+            }
+        }
+    }
+
+    /// Light level, glare, noise and quantisation over the whole frame.
+    fn finish_full(&self, brightness: f32, glare: f32, noise: &[f32], seed: u64, out: &mut [u8]) {
+        let rw = self.w * self.ch;
+        let (inv_gain, read2) = self.noise_params();
         let noisy = !self.cam.noise.is_none() && noise.len() > rw;
         let mut rng = Rng::new(hash_words(&[seed, 0x4E01_5E]));
         let span = (noise.len().saturating_sub(rw)).max(1) as u64;
@@ -734,13 +991,7 @@ impl CameraRenderer {
                             *o = quantise(v + s * n);
                         }
                     }
-                    None => {
-                        for ((o, &r), &n) in row.iter_mut().zip(rad).zip(nz) {
-                            let v = r * brightness;
-                            let s = (read2 + v.max(0.0) * inv_gain).sqrt();
-                            *o = quantise(v + s * n);
-                        }
-                    }
+                    None => quantise_span(rad, nz, row, brightness, read2, inv_gain),
                 }
             } else {
                 for (i, (o, &r)) in row.iter_mut().zip(rad).enumerate() {
@@ -752,10 +1003,92 @@ impl CameraRenderer {
     }
 }
 
+/// `out = quantise(b r + sigma(b r) n)`; no noise when `nz` is empty.
+#[inline]
+fn quantise_span(rad: &[f32], nz: &[f32], out: &mut [u8], b: f32, read2: f32, inv_gain: f32) {
+    if nz.is_empty() {
+        for (o, &r) in out.iter_mut().zip(rad) {
+            *o = quantise(r * b);
+        }
+        return;
+    }
+    for ((o, &r), &n) in out.iter_mut().zip(rad).zip(nz) {
+        let v = r * b;
+        let s = (read2 + v.max(0.0) * inv_gain).sqrt();
+        *o = quantise(v + s * n);
+    }
+}
+
 /// Rounds to the nearest DN and clips to 0..255 (integer clamp: vectorises).
 #[inline(always)]
 fn quantise(v: f32) -> u8 {
     ((v + 0.5) as i32).clamp(0, 255) as u8
+}
+
+/// Rays (world directions), pixel angular sizes and light factors on a grid every
+/// `RayGrid::STEP` pixels, interpolated bilinearly: about 0.3 MB instead of 25 MB of per-pixel
+/// tables, so it stays in cache. Interpolation error is about 0.01 px at the image corners.
+#[derive(Debug, Clone)]
+struct RayGrid {
+    gw: usize,
+    gh: usize,
+    nodes: Vec<[f32; 5]>,
+}
+
+impl RayGrid {
+    const STEP: usize = 8;
+
+    fn new(cam: &SimCamera, light_of: &dyn Fn([f64; 3]) -> f32) -> RayGrid {
+        let s = Self::STEP;
+        let (w, h) = (cam.camera.width, cam.camera.height);
+        let gw = (w - 1) / s + 2;
+        let gh = (h - 1) / s + 2;
+        let k = &cam.camera.intrinsics;
+        let pose = &cam.camera.pose;
+        let dir = |u: f64, v: f64| {
+            let (nx, ny) = k.pixel_to_normalized(u, v);
+            pose.dir_to_world([nx, ny, 1.0])
+        };
+        let mut nodes = Vec::with_capacity(gw * gh);
+        for j in 0..gh {
+            for i in 0..gw {
+                let (u, v) = ((i * s) as f64, (j * s) as f64);
+                let dw = dir(u, v);
+                let d = norm(dw);
+                let d1 = norm(dir(u + 1.0, v));
+                let foot =
+                    ((d1[0] - d[0]).powi(2) + (d1[1] - d[1]).powi(2) + (d1[2] - d[2]).powi(2))
+                        .sqrt();
+                nodes.push([d[0], d[1], d[2], foot, light_of(dw)]);
+            }
+        }
+        RayGrid { gw, gh, nodes }
+    }
+
+    /// (unit direction, angular size, light) at pixel position `(x, y)`.
+    #[inline]
+    fn sample(&self, x: f32, y: f32) -> (V3, f32, f32) {
+        let inv = 1.0 / Self::STEP as f32;
+        let gx = (x * inv).clamp(0.0, (self.gw - 1) as f32 - 1e-3);
+        let gy = (y * inv).clamp(0.0, (self.gh - 1) as f32 - 1e-3);
+        let i = gx as usize;
+        let j = gy as usize;
+        let fx = gx - i as f32;
+        let fy = gy - j as f32;
+        let k = j * self.gw + i;
+        let (a, b, c, d) = (
+            &self.nodes[k],
+            &self.nodes[k + 1],
+            &self.nodes[k + self.gw],
+            &self.nodes[k + self.gw + 1],
+        );
+        let mut o = [0.0f32; 5];
+        for m in 0..5 {
+            o[m] = (a[m] + (b[m] - a[m]) * fx) * (1.0 - fy) + (c[m] + (d[m] - c[m]) * fx) * fy;
+        }
+        let n = 1.0 / (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
+        ([o[0] * n, o[1] * n, o[2] * n], o[3], o[4])
+    }
 }
 
 /// A table of standard normal values for the noise (indexed at random offsets per row).

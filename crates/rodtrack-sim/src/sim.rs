@@ -153,12 +153,13 @@ impl Simulation {
         let mut lit_scene = scene.clone();
         lit_scene.lighting = lighting;
         let shader = Shader::new(&lit_scene);
+        let noise = noise_table(1 << 20, 0x0015_E7AB);
         let renderers: Vec<CameraRenderer> = std::thread::scope(|s| {
             let handles: Vec<_> = cameras
                 .iter()
                 .map(|c| {
-                    let (sc, sh) = (&lit_scene, &shader);
-                    s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh, mode))
+                    let (sc, sh, nz) = (&lit_scene, &shader, &noise);
+                    s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh, mode, nz))
                 })
                 .collect();
             handles
@@ -175,7 +176,7 @@ impl Simulation {
                 mode,
                 seed: 1,
                 shader,
-                noise: noise_table(1 << 20, 0x0015_E7AB),
+                noise,
                 reference,
             },
             renderers,
