@@ -643,9 +643,14 @@ impl MarkerTexture {
     #[inline]
     fn bit_mean(&self, k: u32, psi: f32, h: f32) -> f32 {
         let sc = self.steps / std::f32::consts::TAU;
-        // Bit k of gray(n) repeats every 2^(k+2) steps and is black over the middle half.
-        let period = (4u32 << k) as f32;
-        let shift = (1u32 << k) as f32;
+        // Bit k of gray(n) is floor((n + 2^k) / 2^(k+1)) mod 2: it repeats every 2^(k+2) steps
+        // and is black over the second half of each period after a shift of 2^k. The top bit
+        // (black for n in [steps/2, steps)) repeats every `steps` (n wraps around the rod).
+        let (period, shift) = if k + 1 >= self.bits {
+            (self.steps, 0.0)
+        } else {
+            ((4u32 << k) as f32, (1u32 << k) as f32)
+        };
         let cum = |s: f32| {
             let x = (s + shift) / period;
             let f = x.floor();
@@ -777,5 +782,36 @@ impl Table {
             }
         }
         best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The analytic box filter agrees with the marker's own point definition.
+    #[test]
+    fn texture_matches_marker_definition() {
+        let m = Marker::v1();
+        let t = MarkerTexture::new(&m);
+        let mut bad = 0;
+        for i in 0..2000 {
+            let u = -3.0 + 112.0 * (i as f64 + 0.37) / 2000.0;
+            for j in 0..64 {
+                // Print angles beyond one turn must wrap.
+                let psi = TAU * (j as f64 + 0.29) / 64.0 - TAU + TAU * (i % 3) as f64;
+                let (paper, black) = t.coverage(u as f32, psi as f32, 1e-5, 1e-6);
+                let inside = (0.0..m.length_mm()).contains(&u);
+                assert_eq!(paper > 0.5, inside, "u {u}");
+                let want = inside && m.is_black(u, psi);
+                if (black > 0.5) != want {
+                    bad += 1;
+                }
+            }
+        }
+        assert_eq!(bad, 0);
+        // A footprint over a whole bit-0 period is half black.
+        let (_, b) = t.coverage(75.0, 1.0, 0.1, (TAU / 8.0) as f32 * 0.5);
+        assert!((b - 0.5).abs() < 1e-3, "{b}");
     }
 }

@@ -275,6 +275,32 @@ impl Simulation {
         self.ctx.render_reference(r, camera_index, out)
     }
 
+    /// Renders camera `camera_index` with the world in an arbitrary state (no motion blur),
+    /// for tests and overlays; `frame_id` only seeds the noise and labels the frame.
+    pub fn render_state(
+        &mut self,
+        camera_index: usize,
+        state: &WorldState,
+        frame_id: u64,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        if state.rods.len() != self.ctx.scene.rods.len() {
+            return Err(SimError::Config(format!(
+                "state has {} rods, the scene {}",
+                state.rods.len(),
+                self.ctx.scene.rods.len()
+            )));
+        }
+        let r = self
+            .renderers
+            .get_mut(camera_index)
+            .ok_or(SimError::NoSuchCamera {
+                index: camera_index,
+                count: self.ctx.cameras.len(),
+            })?;
+        self.ctx.render_state(r, camera_index, state, frame_id, out)
+    }
+
     /// Ground truth of every rod for frame `frame_index` seen by camera `camera_index`; values
     /// at the middle of the exposure, timestamp = the frame's trigger time.
     pub fn truth(
@@ -414,6 +440,23 @@ impl Ctx {
         cam: usize,
         out: &mut [u8],
     ) -> Result<FrameMeta, SimError> {
+        let st = WorldState::posed(&self.reference);
+        self.render_state(r, cam, &st, u64::MAX, out)
+            .map(|m| FrameMeta {
+                frame_id: 0,
+                timestamp_s: 0.0,
+                ..m
+            })
+    }
+
+    pub fn render_state(
+        &self,
+        r: &mut CameraRenderer,
+        cam: usize,
+        st: &WorldState,
+        frame_id: u64,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
         let c = self.camera(cam)?;
         let need = c.frame_bytes();
         if out.len() < need {
@@ -422,8 +465,7 @@ impl Ctx {
                 got: out.len(),
             });
         }
-        let st = WorldState::posed(&self.reference);
-        let g = WorldGeom::build(&self.scene, &st, 0.0);
+        let g = WorldGeom::build(&self.scene, st, 0.0);
         let n = match self.mode {
             RenderMode::Fast => 1,
             RenderMode::Quality => crate::render::QSUB * crate::render::QSUB,
@@ -431,18 +473,9 @@ impl Ctx {
         let geoms = vec![g; n];
         let b = self.scenario.brightness.value(0.0) as f32;
         let gl = self.scenario.glare.value(0.0).max(0.0) as f32;
-        let seed = hash_words(&[self.seed, u64::MAX, cam as u64]);
-        r.render(
-            &geoms,
-            &self.shader,
-            self.mode,
-            b,
-            gl,
-            &self.noise,
-            seed,
-            &mut out[..need],
-        );
-        Ok(self.meta(cam, 0, 0.0))
+        let seed = hash_words(&[self.seed, frame_id, cam as u64, 0x57A7E]);
+        r.render(&geoms, &self.shader, self.mode, b, gl, &self.noise, seed, &mut out[..need]);
+        Ok(self.meta(cam, frame_id, frame_id as f64 / self.scenario.fps))
     }
 
     fn meta(&self, cam: usize, frame_id: u64, t: f64) -> FrameMeta {
