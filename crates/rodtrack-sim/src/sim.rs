@@ -474,7 +474,16 @@ impl Ctx {
         let b = self.scenario.brightness.value(0.0) as f32;
         let gl = self.scenario.glare.value(0.0).max(0.0) as f32;
         let seed = hash_words(&[self.seed, frame_id, cam as u64, 0x57A7E]);
-        r.render(&geoms, &self.shader, self.mode, b, gl, &self.noise, seed, &mut out[..need]);
+        r.render(
+            &geoms,
+            &self.shader,
+            self.mode,
+            b,
+            gl,
+            &self.noise,
+            seed,
+            &mut out[..need],
+        );
         Ok(self.meta(cam, frame_id, frame_id as f64 / self.scenario.fps))
     }
 

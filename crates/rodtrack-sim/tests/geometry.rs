@@ -67,8 +67,13 @@ fn centre_line_matches_projection(mode: RenderMode) {
     let mut img = vec![0u8; s.frame_bytes(0).unwrap()];
     let rods = scene.rods.len();
     for cam in 0..2 {
-        s.render_state(cam, &WorldState::posed(&vec![(0.0, 0.0); rods]), 0, &mut img)
-            .unwrap();
+        s.render_state(
+            cam,
+            &WorldState::posed(&vec![(0.0, 0.0); rods]),
+            0,
+            &mut img,
+        )
+        .unwrap();
         let bg = 0.9 * 235.0;
         let rod_level = 0.45 * 235.0 + 0.02 * 235.0 / 3.0;
         let mut checked = 0;
@@ -153,7 +158,8 @@ fn read_code(s: &Simulation, img: &[u8], w: usize, cam: usize, rod: usize, pos: 
 fn marker_shows_the_gray_code_of_the_angle() {
     let variants: Vec<(&str, SceneConfig, Vec<SimCamera>)> = {
         let base = SceneConfig::default();
-        let flipped = SceneConfig::default().with_marker_dirs(&[-1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0]);
+        let flipped =
+            SceneConfig::default().with_marker_dirs(&[-1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0]);
         let cam = default_cameras().remove(0);
         let yawed = cam
             .clone()
@@ -162,7 +168,11 @@ fn marker_shows_the_gray_code_of_the_angle() {
         vec![
             ("default", base.clone(), vec![cam.clone()]),
             ("flipped markers", flipped, vec![cam]),
-            ("yaw 180, k1 -0.35, rod 20 mm", base.with_rod_diameter(20.0), vec![yawed]),
+            (
+                "yaw 180, k1 -0.35, rod 20 mm",
+                base.with_rod_diameter(20.0),
+                vec![yawed],
+            ),
         ]
     };
     for (name, scene, cams) in variants {
@@ -185,7 +195,8 @@ fn marker_shows_the_gray_code_of_the_angle() {
                 let pos = 17.0;
                 let mut poses = vec![(0.0, 0.0); rods];
                 poses[rod] = (pos, theta + TAU * 3.0);
-                s.render_state(0, &WorldState::posed(&poses), 0, &mut img).unwrap();
+                s.render_state(0, &WorldState::posed(&poses), 0, &mut img)
+                    .unwrap();
                 let code = read_code(&s, &img, w, 0, rod, pos);
                 assert_eq!(
                     code,
