@@ -263,8 +263,10 @@ fn calibration_inputs_have_the_spec_shape() {
             assert!(span > 150.0, "rod {}: points span {span} px", r.rod);
         }
     }
-    let mut o = rodtrack_sim::CalibOptions::default();
-    o.include_opencv_model = false;
+    let o = rodtrack_sim::CalibOptions {
+        include_opencv_model: false,
+        ..Default::default()
+    };
     assert!(s
         .calibration_inputs_with(0, 5, &o)
         .unwrap()
