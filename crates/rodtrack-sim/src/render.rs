@@ -121,6 +121,9 @@ pub(crate) struct CameraRenderer {
     quads: Vec<Quad>,
     spans: Vec<(u32, u32, u32)>,
     tile_dirty: Vec<bool>,
+    /// Quality mode: pixels to trace for moving objects this frame.
+    obj_mask: Vec<bool>,
+    mask_list: Vec<u32>,
     pub stats: RenderStats,
 }
 
@@ -228,6 +231,8 @@ impl CameraRenderer {
             quads: Vec::new(),
             spans: Vec::new(),
             tile_dirty: vec![false; tiles_x * tiles_y],
+            obj_mask: vec![false; w * h],
+            mask_list: Vec::new(),
             stats: RenderStats::default(),
         };
         let sub = match mode {
@@ -565,7 +570,7 @@ impl CameraRenderer {
                     let cands = [Obj::Rod(i as u16)];
                     for j in a..b {
                         let p = self.strips[i].px[j].idx as usize;
-                        self.shade_pixel_quality(p % self.w, p / self.w, geoms, shader, &cands);
+                        self.shade_pixel_quality(p % self.w, p / self.w, geoms, shader, &cands, QSUB);
                     }
                 }
             }
@@ -591,6 +596,32 @@ impl CameraRenderer {
             return;
         }
         self.collect_tiles(geoms, shader);
+        // Quality: only pixels near what the moving objects cover during the exposure.
+        let last = geoms.len() - 1;
+        let mut quads = std::mem::take(&mut self.quads);
+        let mut spans = std::mem::take(&mut self.spans);
+        for gi in [0, last / 2, last] {
+            quads.clear();
+            spans.clear();
+            self.build_quads(&geoms[gi], shader, &mut quads);
+            for q in &quads {
+                scan(q, self.w, self.h, &mut spans);
+            }
+            for &(y, x0, x1) in &spans {
+                let y = y as usize;
+                for yy in y.saturating_sub(1)..(y + 2).min(self.h) {
+                    for x in (x0 as usize).saturating_sub(1)..(x1 as usize + 2).min(self.w) {
+                        let p = yy * self.w + x;
+                        if !self.obj_mask[p] {
+                            self.obj_mask[p] = true;
+                            self.mask_list.push(p as u32);
+                        }
+                    }
+                }
+            }
+        }
+        self.quads = quads;
+        self.spans = spans;
         let touched = std::mem::take(&mut self.touched);
         let mut cands: Vec<Obj> = Vec::new();
         for &t in &touched {
@@ -614,12 +645,18 @@ impl CameraRenderer {
                     }
                     for y in r.y0..r.y1 {
                         for x in r.x0..r.x1 {
-                            self.shade_pixel_quality(x, y, geoms, shader, &cands);
+                            if self.obj_mask[y * self.w + x] {
+                                self.shade_pixel_quality(x, y, geoms, shader, &cands, 2);
+                            }
                         }
                     }
                 }
             }
         }
+        for &p in &self.mask_list {
+            self.obj_mask[p as usize] = false;
+        }
+        self.mask_list.clear();
         self.prev_tiles.clear();
         self.prev_tiles.extend_from_slice(&touched);
         let object_tiles = touched.len();
@@ -647,6 +684,13 @@ impl CameraRenderer {
     fn paint_objects(&mut self, g: &WorldGeom, shader: &Shader) {
         let mut quads = std::mem::take(&mut self.quads);
         quads.clear();
+        self.build_quads(g, shader, &mut quads);
+        self.paint_quads(g, shader, &quads);
+        self.quads = quads;
+    }
+
+    /// The camera-facing faces of every figure, hand and the ball, far to near.
+    fn build_quads(&self, g: &WorldGeom, shader: &Shader, quads: &mut Vec<Quad>) {
         let cam = self.cam.camera;
         let o = self.origin.map(|v| v as f64);
         let amb = shader.ambient;
@@ -666,13 +710,13 @@ impl CameraRenderer {
                     ]
                 };
                 for (lo, hi) in &shader.figure {
-                    box_faces(&cam, o, *lo, *hi, &to_world, &rot, col, amb, &mut quads);
+                    box_faces(&cam, o, *lo, *hi, &to_world, &rot, col, amb, quads);
                 }
             }
         }
         let id = |v: V3| v;
         for b in &g.hand_boxes {
-            box_faces(&cam, o, b.lo, b.hi, &id, &id, shader.skin, amb, &mut quads);
+            box_faces(&cam, o, b.lo, b.hi, &id, &id, shader.skin, amb, quads);
         }
         if let Some((c, r)) = g.ball {
             let cd = [c[0] as f64, c[1] as f64, c[2] as f64];
@@ -702,10 +746,15 @@ impl CameraRenderer {
             }
         }
         quads.sort_by(|a, b| b.dist.total_cmp(&a.dist));
+    }
+
+    /// Fills the quads into the image (fast mode) and marks their tiles dirty.
+    fn paint_quads(&mut self, g: &WorldGeom, shader: &Shader, quads: &[Quad]) {
+        let amb = shader.ambient;
         let mut spans = std::mem::take(&mut self.spans);
         let mut rad = std::mem::take(&mut self.rad);
         let (ch, w, bayer) = (self.ch, self.w, self.bayer);
-        for q in &quads {
+        for q in quads {
             spans.clear();
             scan(q, self.w, self.h, &mut spans);
             if spans.is_empty() {
@@ -783,7 +832,6 @@ impl CameraRenderer {
             self.tile_dirty[t as usize] = false;
         }
         self.spans = spans;
-        self.quads = quads;
     }
 
     fn shade_marker_fast(&mut self, i: usize, a: usize, b: usize, g: &WorldGeom, shader: &Shader) {
@@ -842,7 +890,8 @@ impl CameraRenderer {
         self.rad = rad;
     }
 
-    /// Quality mode: 4 x 4 sub-samples, each at its own time, against `cands`, over the table.
+    /// Quality mode: `sub x sub` sub-samples (4 or 2), each at its own time, against `cands`,
+    /// over the table.
     fn shade_pixel_quality(
         &mut self,
         x: usize,
@@ -850,17 +899,19 @@ impl CameraRenderer {
         geoms: &[WorldGeom],
         shader: &Shader,
         cands: &[Obj],
+        sub: usize,
     ) {
         let p = y * self.w + x;
         let ch = self.ch;
         let mut acc = [0.0f32; 3];
-        let n = QSUB * QSUB;
+        let n = sub * sub;
         for s in 0..n {
-            let fx = ((s % QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
-            let fy = ((s / QSUB) as f32 + 0.5) / QSUB as f32 - 0.5;
-            let g = &geoms[QTIME[s] * geoms.len() / n];
+            let fx = ((s % sub) as f32 + 0.5) / sub as f32 - 0.5;
+            let fy = ((s / sub) as f32 + 0.5) / sub as f32 - 0.5;
+            let slot = if sub == QSUB { QTIME[s] } else { [0, 2, 3, 1][s % 4] };
+            let g = &geoms[slot * geoms.len() / n];
             let (d, foot, light) = self.sub_ray(x, y, fx, fy);
-            let foot = foot / QSUB as f32;
+            let foot = foot / sub as f32;
             let t_max = self.t_max(x, y, d);
             match shader.trace(g, cands, self.origin, d, foot, t_max, None) {
                 Some(hit) => {
