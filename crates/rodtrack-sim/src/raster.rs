@@ -19,6 +19,8 @@ pub(crate) struct Quad {
     /// Face plane: world normal and a point on it.
     pub n: V3,
     pub c: V3,
+    /// Lowest world `z` of the face, mm (a face above a rod's top is never behind it).
+    pub zmin: f32,
     /// A disc instead of a quad: centre `v[0]`, radius `v[1][0]` (px).
     pub disc: bool,
 }
@@ -83,6 +85,7 @@ pub(crate) fn box_faces(
                 rgb: albedo.map(|v| v * sh),
                 n,
                 c: cen,
+                zmin: idx.iter().map(|&i| corners[i][2]).fold(f32::INFINITY, f32::min),
                 disc: false,
             });
         }
@@ -156,6 +159,7 @@ mod tests {
             rgb: [0.0; 3],
             n: [0.0; 3],
             c: [0.0; 3],
+            zmin: 0.0,
             disc: false,
         };
         let mut spans = Vec::new();

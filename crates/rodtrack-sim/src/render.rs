@@ -741,6 +741,7 @@ impl CameraRenderer {
                     rgb: shader.ball,
                     n: [0.0, 0.0, 1.0],
                     c,
+                    zmin: c[2] - r,
                     disc: true,
                 });
             }
@@ -783,7 +784,14 @@ impl CameraRenderer {
                 }
                 for x in x0 as usize..=x1 as usize {
                     let p = y * self.w + x;
-                    let rm = self.rod_mask[p];
+                    let mut rm = self.rod_mask[p];
+                    if rm != 0 {
+                        // A ray from above meets a face that lies above the rod's top first.
+                        let rod = &g.rods[rm as usize - 1];
+                        if q.zmin > rod.z + rod.r {
+                            rm = 0;
+                        }
+                    }
                     let wall = self.tile_wall[ty * self.tiles_x + x / TILE];
                     if rm != 0 || wall {
                         let (d, _, _) = self.grid.sample(x as f32, y as f32);
