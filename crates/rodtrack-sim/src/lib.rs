@@ -26,10 +26,6 @@
 //! - [`write_recording`]`(&mut sim, out_dir, &RecordOptions, &mut progress)`.
 //! - [`Scenario::by_name`]`(name, &scene, seed)` for the names in [`SCENARIO_NAMES`].
 
-// The renderer indexes pixels, sub-samples and channels explicitly; these style lints are off
-// for the crate until it is reworked.
-#![allow(clippy::needless_range_loop, clippy::unusual_byte_groupings, dead_code)]
-
 pub mod cameras;
 pub mod error;
 pub mod geom;

@@ -85,7 +85,10 @@ pub(crate) fn box_faces(
                 rgb: albedo.map(|v| v * sh),
                 n,
                 c: cen,
-                zmin: idx.iter().map(|&i| corners[i][2]).fold(f32::INFINITY, f32::min),
+                zmin: idx
+                    .iter()
+                    .map(|&i| corners[i][2])
+                    .fold(f32::INFINITY, f32::min),
                 disc: false,
             });
         }

@@ -155,16 +155,16 @@ pub fn write_recording(
         .iter()
         .map(|c| vec![0u8; c.frame_bytes()])
         .collect();
-    for ci in 0..ncam {
+    for (ci, buf) in bufs.iter_mut().enumerate() {
         let cam = sim.ctx.cameras[ci].clone();
         let dir = out_dir.join(&cam.name);
         fs::create_dir_all(&dir).map_err(|e| io_err(&dir, e))?;
         let rdir = out_dir.join(format!("{}_ref", cam.name));
         fs::create_dir_all(&rdir).map_err(|e| io_err(&rdir, e))?;
-        let meta = sim.render_reference(ci, &mut bufs[ci])?;
+        let meta = sim.render_reference(ci, buf)?;
         write_png(
             &rdir.join("000000.png"),
-            &bufs[ci],
+            buf,
             meta.width,
             meta.height,
             meta.format,

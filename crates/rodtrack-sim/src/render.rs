@@ -241,7 +241,7 @@ impl CameraRenderer {
         };
         r.build_static(scene, shader, sub, &light_of);
         r.rad = r.bg.clone();
-        r.build_noisy_copies(noise, 0x5EED_B6);
+        r.build_noisy_copies(noise, 0x005E_EDB6);
         r
     }
 
@@ -570,7 +570,14 @@ impl CameraRenderer {
                     let cands = [Obj::Rod(i as u16)];
                     for j in a..b {
                         let p = self.strips[i].px[j].idx as usize;
-                        self.shade_pixel_quality(p % self.w, p / self.w, geoms, shader, &cands, QSUB);
+                        self.shade_pixel_quality(
+                            p % self.w,
+                            p / self.w,
+                            geoms,
+                            shader,
+                            &cands,
+                            QSUB,
+                        );
                     }
                 }
             }
@@ -900,6 +907,7 @@ impl CameraRenderer {
 
     /// Quality mode: `sub x sub` sub-samples (4 or 2), each at its own time, against `cands`,
     /// over the table.
+    #[allow(clippy::needless_range_loop)]
     fn shade_pixel_quality(
         &mut self,
         x: usize,
@@ -916,7 +924,11 @@ impl CameraRenderer {
         for s in 0..n {
             let fx = ((s % sub) as f32 + 0.5) / sub as f32 - 0.5;
             let fy = ((s / sub) as f32 + 0.5) / sub as f32 - 0.5;
-            let slot = if sub == QSUB { QTIME[s] } else { [0, 2, 3, 1][s % 4] };
+            let slot = if sub == QSUB {
+                QTIME[s]
+            } else {
+                [0, 2, 3, 1][s % 4]
+            };
             let g = &geoms[slot * geoms.len() / n];
             let (d, foot, light) = self.sub_ray(x, y, fx, fy);
             let foot = foot / sub as f32;
@@ -983,7 +995,7 @@ impl CameraRenderer {
             return;
         }
         let rw = self.w * self.ch;
-        let mut rng = Rng::new(hash_words(&[seed, 0xC0_B1E5]));
+        let mut rng = Rng::new(hash_words(&[seed, 0x00C0_B1E5]));
         let nc = self.noisy_bg.len() as u64;
         for (y, row) in out.chunks_exact_mut(rw).take(self.h).enumerate() {
             let v = rng.below(nc) as usize;
@@ -1033,7 +1045,7 @@ impl CameraRenderer {
         let rw = self.w * self.ch;
         let (inv_gain, read2) = self.noise_params();
         let noisy = !self.cam.noise.is_none() && noise.len() > rw;
-        let mut rng = Rng::new(hash_words(&[seed, 0x4E01_5E]));
+        let mut rng = Rng::new(hash_words(&[seed, 0x004E_015E]));
         let span = (noise.len().saturating_sub(rw)).max(1) as u64;
         let glare_map = self.glare.as_deref().filter(|_| glare > 0.0);
         for (y, row) in out.chunks_exact_mut(rw).take(self.h).enumerate() {

@@ -473,7 +473,7 @@ impl Ctx {
         let geoms = vec![g; n];
         let b = self.scenario.brightness.value(0.0) as f32;
         let gl = self.scenario.glare.value(0.0).max(0.0) as f32;
-        let seed = hash_words(&[self.seed, frame_id, cam as u64, 0x57A7E]);
+        let seed = hash_words(&[self.seed, frame_id, cam as u64, 0x0005_7A7E]);
         r.render(
             &geoms,
             &self.shader,
@@ -598,7 +598,7 @@ impl Ctx {
         let c = self.camera(cam)?;
         let st = WorldState::posed(&self.reference);
         let g = WorldGeom::build(&self.scene, &st, 0.0);
-        let mut rng = Rng::new(hash_words(&[seed, cam as u64, 0xCA11B]));
+        let mut rng = Rng::new(hash_words(&[seed, cam as u64, 0x000C_A11B]));
         let len = self.scene.marker_len_mm();
         let npts = opts.points_per_rod.clamp(3, 5);
         let mut rods = Vec::new();
