@@ -12,19 +12,41 @@
 //! camera defaults are in [`cameras::default_cameras`].
 //!
 //! # API
-//! - [`Simulation::new`]`(scene, cameras, scenario, mode) -> Result<Simulation>`;
-//!   [`Simulation::with_seed`], [`Simulation::set_reference_poses`].
-//! - [`Simulation::frame_count`], [`Simulation::frame_bytes`]`(cam)`.
+//! - [`Simulation::new`]`(scene, cameras, scenario, mode) -> Result<Simulation>` (prepares each
+//!   camera's tables, about 1 s, cameras in parallel); [`Simulation::with_seed`],
+//!   [`Simulation::set_reference_poses`].
+//! - [`Simulation::frame_count`], [`Simulation::frame_bytes`]`(cam)`, [`Simulation::timestamp_s`].
 //! - [`Simulation::render`]`(&mut self, frame_index, camera_index, out: &mut [u8]) ->
-//!   Result<FrameMeta>` (no full-frame allocation per frame; buffers are reused).
-//! - [`Simulation::render_reference`]`(camera_index, out)`: rods at their reference poses.
-//! - [`Simulation::truth`]`(frame_index, camera_index) -> Result<Vec<TruthRow>>`.
-//! - [`Simulation::calibration_inputs`]`(camera_index, seed) -> Result<CalibrationInputs>`
-//!   and [`Simulation::calibration_inputs_with`] ([`CalibOptions`]).
+//!   Result<FrameMeta>`: tightly packed (`stride = width * bytes_per_pixel`); the camera's
+//!   buffers are reused (no full-frame allocation per frame).
+//! - [`Simulation::render_reference`]`(camera_index, out)`: rods at their reference poses, no
+//!   hands, no ball, no motion; [`Simulation::render_state`]`(camera_index, &WorldState,
+//!   frame_id, out)` for any pose.
+//! - [`Simulation::truth`]`(frame_index, camera_index) -> Result<Vec<TruthRow>>`: one row per
+//!   rod, values at the middle of the exposure, timestamp = trigger time.
+//! - [`Simulation::calibration_inputs`]`(camera_index, seed) -> Result<CalibrationInputs>` and
+//!   [`Simulation::calibration_inputs_with`] ([`CalibOptions`]: omit the OpenCV model, click
+//!   noise, points per rod).
 //! - [`Simulation::project_rod_axis`]`(camera_index, rod, y_mm) -> Result<Option<(u, v)>>`.
 //! - [`Simulation::marker_status`]`(camera_index, rod, &WorldState) -> Result<Status>`.
+//! - [`Simulation::last_render_stats`]`(camera_index)`: where the last frame's time went.
 //! - [`write_recording`]`(&mut sim, out_dir, &RecordOptions, &mut progress)`.
-//! - [`Scenario::by_name`]`(name, &scene, seed)` for the names in [`SCENARIO_NAMES`].
+//! - [`Scenario::by_name`]`(name, &scene, seed)` for the names in [`SCENARIO_NAMES`];
+//!   [`Scenario::with_duration`], [`Scenario::with_frames`]; scenarios are plain data (tracks of
+//!   trapezoidal moves and spins, hand passes, ball path, light levels) and can be built by hand.
+//!
+//! # Rendering
+//! Per camera, once: a ray grid (exact undistortion at every 8th pixel, interpolated), the
+//! table supersampled, every pixel where a rod can appear (rods only slide and turn, so the
+//! hit point on the cylinder is fixed per pixel) and a few noisy copies of the still image.
+//! Per frame, fast mode: each marker's pixels are shaded with the print box-filtered
+//! analytically over the pixel footprint widened by the motion during the exposure; figures,
+//! hands and the ball are rasterised (camera-facing box faces, far to near) with exact
+//! occlusion tests against the rods and walls; light, glare, shot and read noise and 8-bit
+//! quantisation finish the frame (rows of a noisy still copy where nothing changed). Quality
+//! mode traces 4 x 4 sub-samples per marker pixel, each at its own time in the exposure, and
+//! 2 x 2 for moving objects. Speed: `cargo bench -p rodtrack-sim --bench render -- fast
+//! gameplay` (see the crate's bench for the numbers).
 
 pub mod cameras;
 pub mod error;
