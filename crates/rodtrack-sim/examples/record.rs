@@ -1,6 +1,8 @@
 //! Writes a recording: `cargo run --release -p rodtrack-sim --example record -- SCENARIO OUT_DIR [FRAMES] [quality]`.
 
-use rodtrack_sim::{default_cameras, write_recording, RecordOptions, RenderMode, Scenario, SceneConfig, Simulation};
+use rodtrack_sim::{
+    default_cameras, write_recording, RecordOptions, RenderMode, Scenario, SceneConfig, Simulation,
+};
 use std::path::Path;
 use std::time::Instant;
 

@@ -48,7 +48,7 @@ pub(crate) struct WBox {
 }
 
 /// The world at one instant.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct WorldGeom {
     pub rods: Vec<RodGeom>,
     pub hand_boxes: Vec<WBox>,
@@ -69,7 +69,7 @@ pub struct RodPose {
 }
 
 /// Everything that moves, at one instant (double precision, from the scenario).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct WorldState {
     /// Rod poses.
     pub rods: Vec<RodPose>,
@@ -82,11 +82,16 @@ pub struct WorldState {
 impl WorldState {
     /// The scenario's state at `t_s`.
     pub fn at(scene: &SceneConfig, scenario: &Scenario, t_s: f64) -> WorldState {
-        let rods = scene
-            .rods
-            .iter()
-            .enumerate()
-            .map(|(i, _)| match scenario.rods.get(i) {
+        let mut s = WorldState::default();
+        s.set_at(scene, scenario, t_s);
+        s
+    }
+
+    /// Overwrites `self` with the scenario's state at `t_s`, reusing its buffers.
+    pub fn set_at(&mut self, scene: &SceneConfig, scenario: &Scenario, t_s: f64) {
+        self.rods.clear();
+        self.rods
+            .extend((0..scene.rods.len()).map(|i| match scenario.rods.get(i) {
                 Some(m) => {
                     let (p, v) = m.position.eval(t_s);
                     let (a, w) = m.angle.eval(t_s);
@@ -103,20 +108,20 @@ impl WorldState {
                     velocity_mm_s: 0.0,
                     angular_velocity_rad_s: 0.0,
                 },
-            })
-            .collect();
-        let hands = scenario
-            .hands
-            .iter()
-            .filter_map(|h| h.palm_at(t_s).map(|p| (p, h.side)))
-            .collect();
+            }));
+        self.hands.clear();
+        self.hands.extend(
+            scenario
+                .hands
+                .iter()
+                .filter_map(|h| h.palm_at(t_s).map(|p| (p, h.side))),
+        );
         let r = 0.5 * scene.ball_diameter_mm;
-        let ball = scenario
+        self.ball = scenario
             .ball
             .as_ref()
             .and_then(|b| b.at(t_s))
             .map(|(x, y)| [x, y, r]);
-        WorldState { rods, hands, ball }
     }
 
     /// Every rod at the given poses, nothing else.
@@ -140,34 +145,49 @@ impl WorldState {
 impl WorldGeom {
     /// Geometry of `state`; `blur_s` is the exposure for the analytic marker blur (0 for none).
     pub fn build(scene: &SceneConfig, state: &WorldState, blur_s: f64) -> WorldGeom {
-        let rods = scene
-            .rods
-            .iter()
-            .zip(&state.rods)
-            .map(|(rc, p)| {
-                let shift = rc.shift_y(p.position_mm);
-                let phi = rc.marker_dir * p.angle_rad;
-                let centre = 0.5 * scene.field_width_mm + shift;
-                RodGeom {
-                    x: rc.x_mm as f32,
-                    z: rc.z_mm as f32,
-                    r: rc.radius_mm() as f32,
-                    y_lo: (centre - 0.5 * rc.length_mm) as f32,
-                    y_hi: (centre + 0.5 * rc.length_mm) as f32,
-                    cphi: phi.cos() as f32,
-                    sphi: phi.sin() as f32,
-                    dir: rc.marker_dir as f32,
-                    marker_start: rc.marker_y(0.0, p.position_mm) as f32,
-                    psi_base: (p.angle_rad + rc.psi0_rad).rem_euclid(TAU) as f32,
-                    hu_blur: (0.5 * p.velocity_mm_s.abs() * blur_s) as f32,
-                    hpsi_blur: (0.5 * p.angular_velocity_rad_s.abs() * blur_s) as f32,
-                    figs: rc.figure_y_mm.iter().map(|y| (y + shift) as f32).collect(),
-                    team: rc.team,
-                }
-            })
-            .collect();
+        let mut g = WorldGeom::default();
+        g.build_into(scene, state, blur_s);
+        g
+    }
+
+    /// Like [`WorldGeom::build`], reusing `self`'s buffers (no allocation once warm).
+    pub fn build_into(&mut self, scene: &SceneConfig, state: &WorldState, blur_s: f64) {
+        self.rods.truncate(scene.rods.len());
+        for (i, (rc, p)) in scene.rods.iter().zip(&state.rods).enumerate() {
+            let shift = rc.shift_y(p.position_mm);
+            let phi = rc.marker_dir * p.angle_rad;
+            let centre = 0.5 * scene.field_width_mm + shift;
+            let mut figs = match self.rods.get_mut(i) {
+                Some(r) => std::mem::take(&mut r.figs),
+                None => Vec::new(),
+            };
+            figs.clear();
+            figs.extend(rc.figure_y_mm.iter().map(|y| (y + shift) as f32));
+            let g = RodGeom {
+                x: rc.x_mm as f32,
+                z: rc.z_mm as f32,
+                r: rc.radius_mm() as f32,
+                y_lo: (centre - 0.5 * rc.length_mm) as f32,
+                y_hi: (centre + 0.5 * rc.length_mm) as f32,
+                cphi: phi.cos() as f32,
+                sphi: phi.sin() as f32,
+                dir: rc.marker_dir as f32,
+                marker_start: rc.marker_y(0.0, p.position_mm) as f32,
+                psi_base: (p.angle_rad + rc.psi0_rad).rem_euclid(TAU) as f32,
+                hu_blur: (0.5 * p.velocity_mm_s.abs() * blur_s) as f32,
+                hpsi_blur: (0.5 * p.angular_velocity_rad_s.abs() * blur_s) as f32,
+                figs,
+                team: rc.team,
+            };
+            if i < self.rods.len() {
+                self.rods[i] = g;
+            } else {
+                self.rods.push(g);
+            }
+        }
         let hs = &scene.hand;
-        let mut hand_boxes = Vec::new();
+        let hand_boxes = &mut self.hand_boxes;
+        hand_boxes.clear();
         for &(c, side) in &state.hands {
             let lo = [
                 c[0] - 0.5 * hs.palm_mm[0],
@@ -202,13 +222,9 @@ impl WorldGeom {
                 ],
             });
         }
-        WorldGeom {
-            rods,
-            hand_boxes,
-            ball: state
-                .ball
-                .map(|b| (b.map(|v| v as f32), (0.5 * scene.ball_diameter_mm) as f32)),
-        }
+        self.ball = state
+            .ball
+            .map(|b| (b.map(|v| v as f32), (0.5 * scene.ball_diameter_mm) as f32));
     }
 }
 

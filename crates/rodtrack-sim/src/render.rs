@@ -121,6 +121,9 @@ pub(crate) struct CameraRenderer {
     quads: Vec<Quad>,
     spans: Vec<(u32, u32, u32)>,
     tile_dirty: Vec<bool>,
+    /// Scratch for the world at this frame's time samples.
+    pub scratch_state: crate::geom::WorldState,
+    pub scratch_geoms: Vec<WorldGeom>,
     /// Quality mode: pixels to trace for moving objects this frame.
     obj_mask: Vec<bool>,
     mask_list: Vec<u32>,
@@ -231,6 +234,8 @@ impl CameraRenderer {
             quads: Vec::new(),
             spans: Vec::new(),
             tile_dirty: vec![false; tiles_x * tiles_y],
+            scratch_state: Default::default(),
+            scratch_geoms: Vec::new(),
             obj_mask: vec![false; w * h],
             mask_list: Vec::new(),
             stats: RenderStats::default(),

@@ -378,25 +378,30 @@ impl Ctx {
         self.cameras[cam].exposure_us * 1e-6
     }
 
-    /// The geometry at the time samples of frame `frame_index` for camera `cam`.
-    fn geoms_for(&self, frame_index: usize, cam: usize) -> Vec<WorldGeom> {
+    /// The geometry at the time samples of frame `frame_index` for camera `cam`, into
+    /// reused buffers.
+    fn fill_geoms(
+        &self,
+        frame_index: usize,
+        cam: usize,
+        st: &mut WorldState,
+        geoms: &mut Vec<WorldGeom>,
+    ) {
         let t0 = frame_index as f64 / self.scenario.fps;
         let exp = self.exposure_s(cam);
-        match self.mode {
-            RenderMode::Fast => {
-                let st = WorldState::at(&self.scene, &self.scenario, t0 + 0.5 * exp);
-                vec![WorldGeom::build(&self.scene, &st, exp)]
-            }
-            RenderMode::Quality => {
-                let n = crate::render::QSUB * crate::render::QSUB;
-                (0..n)
-                    .map(|k| {
-                        let t = t0 + exp * (k as f64 + 0.5) / n as f64;
-                        let st = WorldState::at(&self.scene, &self.scenario, t);
-                        WorldGeom::build(&self.scene, &st, 0.0)
-                    })
-                    .collect()
-            }
+        let (n, blur) = match self.mode {
+            RenderMode::Fast => (1, exp),
+            RenderMode::Quality => (crate::render::QSUB * crate::render::QSUB, 0.0),
+        };
+        geoms.resize_with(n, WorldGeom::default);
+        for (k, g) in geoms.iter_mut().enumerate() {
+            let t = if n == 1 {
+                t0 + 0.5 * exp
+            } else {
+                t0 + exp * (k as f64 + 0.5) / n as f64
+            };
+            st.set_at(&self.scene, &self.scenario, t);
+            g.build_into(&self.scene, st, blur);
         }
     }
 
@@ -417,7 +422,9 @@ impl Ctx {
         }
         let t0 = frame_index as f64 / self.scenario.fps;
         let tm = t0 + 0.5 * self.exposure_s(cam);
-        let geoms = self.geoms_for(frame_index, cam);
+        let mut geoms = std::mem::take(&mut r.scratch_geoms);
+        let mut st = std::mem::take(&mut r.scratch_state);
+        self.fill_geoms(frame_index, cam, &mut st, &mut geoms);
         let b = self.scenario.brightness.value(tm) as f32;
         let g = self.scenario.glare.value(tm).max(0.0) as f32;
         let seed = hash_words(&[self.seed, frame_index as u64, cam as u64]);
@@ -431,6 +438,8 @@ impl Ctx {
             seed,
             &mut out[..need],
         );
+        r.scratch_geoms = geoms;
+        r.scratch_state = st;
         Ok(self.meta(cam, frame_index as u64, t0))
     }
 
