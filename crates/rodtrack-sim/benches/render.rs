@@ -68,6 +68,15 @@ fn main() {
         cands as f64 / tiles.max(1) as f64,
         phases[3] / nf
     );
+    let t = Instant::now();
+    for k in 0..n {
+        let fi = (k * step) % frames.max(1);
+        std::hint::black_box(sim.truth(fi, 0).expect("truth"));
+    }
+    println!(
+        "truth (8 rods, visibility by ray casting): {:.3} ms/frame",
+        t.elapsed().as_secs_f64() * 1e3 / n.max(1) as f64
+    );
     times.sort_by(f64::total_cmp);
     let med = times[times.len() / 2];
     let p90 = times[times.len() * 9 / 10];

@@ -31,6 +31,9 @@
 //! - [`Simulation::marker_status`]`(camera_index, rod, &WorldState) -> Result<Status>`.
 //! - [`Simulation::last_render_stats`]`(camera_index)`: where the last frame's time went.
 //! - [`write_recording`]`(&mut sim, out_dir, &RecordOptions, &mut progress)`.
+//! - [`apply_variation`]`(name, &mut scene, &mut cameras)` for the setup variations in
+//!   [`VARIATION_NAMES`] (camera yawed 180 degrees, markers flipped, k1 = -0.35, dim light,
+//!   20 mm rods).
 //! - [`Scenario::by_name`]`(name, &scene, seed)` for the names in [`SCENARIO_NAMES`];
 //!   [`Scenario::with_duration`], [`Scenario::with_frames`]; scenarios are plain data (tracks of
 //!   trapezoidal moves and spins, hand passes, ball path, light levels) and can be built by hand.
@@ -59,6 +62,7 @@ pub mod rng;
 pub mod scenario;
 pub mod scene;
 pub mod sim;
+pub mod variations;
 
 pub use cameras::{default_cameras, NoiseModel, SimCamera};
 pub use error::SimError;
@@ -69,3 +73,4 @@ pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
 pub use sim::{CalibOptions, FrameMeta, Simulation, TruthRow};
+pub use variations::{apply_variation, VARIATION_NAMES};
