@@ -47,7 +47,8 @@ pub struct SimCamera {
     pub pixel_format: PixelFormat,
     /// Exposure time, microseconds (scales brightness and motion blur).
     pub exposure_us: f64,
-    /// Frame rate, frames/s.
+    /// Frame rate, frames/s (a [`crate::Simulation`] sets it to its scenario's rate: the
+    /// cameras share one hardware trigger).
     pub fps: f64,
     /// Sensor noise.
     pub noise: NoiseModel,

@@ -149,6 +149,19 @@ impl Simulation {
                 )));
             }
         }
+        // The cameras are hardware-synchronised: the scenario's frame rate triggers them all.
+        let mut cameras = cameras;
+        for c in &mut cameras {
+            c.fps = scenario.fps;
+            if !(c.exposure_us > 0.0 && c.exposure_us <= 1e6 / scenario.fps) {
+                return Err(SimError::Config(format!(
+                    "camera `{}`: exposure {} us must be positive and at most one frame period ({} us)",
+                    c.name,
+                    c.exposure_us,
+                    1e6 / scenario.fps
+                )));
+            }
+        }
         let lighting: Lighting = scenario.lighting.unwrap_or(scene.lighting);
         let mut lit_scene = scene.clone();
         lit_scene.lighting = lighting;
