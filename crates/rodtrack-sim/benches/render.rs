@@ -1,7 +1,9 @@
 //! Render speed: times N frames of one camera and prints the median ms/frame and frames/s.
 //!
 //! `cargo bench -p rodtrack-sim --bench render -- [fast|quality] [SCENARIO] [N] [FORMAT]`
-//! (defaults: fast gameplay 200 bayer_rggb8). Single thread, one 1440 x 1080 camera.
+//! (defaults: fast gameplay, 400 frames in fast mode and 40 in quality mode, bayer_rggb8).
+//! Single thread, one 1440 x 1080 camera; frames are spread over the whole scenario. Results
+//! are in `BENCHMARKS.md` beside this crate's `Cargo.toml`.
 
 use rodtrack_core::PixelFormat;
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
