@@ -981,9 +981,14 @@ impl CameraRenderer {
         };
         let rad = std::mem::replace(&mut self.rad, self.bg.clone());
         let mut copies = Vec::with_capacity(n);
+        // Antithetic pairs (noise n and -n): per pixel the copies' noise has exactly zero mean
+        // and, on average, the model's variance (8 independent draws would show 7/8 of it).
+        let half = n.div_ceil(2);
         for k in 0..n {
             let mut out = vec![0u8; self.w * self.h * self.ch];
-            self.finish_full(1.0, 0.0, noise, hash_words(&[seed, k as u64]), &mut out);
+            let sign = if k >= half { -1.0 } else { 1.0 };
+            let seed = hash_words(&[seed, (k % half) as u64]);
+            self.finish_full(1.0, 0.0, noise, seed, sign, &mut out);
             copies.push(out);
         }
         self.rad = rad;
@@ -996,7 +1001,7 @@ impl CameraRenderer {
     fn finish(&mut self, brightness: f32, glare: f32, noise: &[f32], seed: u64, out: &mut [u8]) {
         let still = brightness == 1.0 && (glare <= 0.0 || self.glare.is_none());
         if !still {
-            self.finish_full(brightness, glare, noise, seed, out);
+            self.finish_full(brightness, glare, noise, seed, 1.0, out);
             return;
         }
         let rw = self.w * self.ch;
@@ -1021,7 +1026,15 @@ impl CameraRenderer {
                 } else {
                     &[][..]
                 };
-                quantise_span(&self.rad[a..b], nz, &mut out[a..b], 1.0, read2, inv_gain);
+                quantise_span(
+                    &self.rad[a..b],
+                    nz,
+                    &mut out[a..b],
+                    1.0,
+                    read2,
+                    inv_gain,
+                    1.0,
+                );
             }
         }
         for &(i, a, b) in &self.prev_ranges {
@@ -1040,13 +1053,23 @@ impl CameraRenderer {
                     1.0,
                     read2,
                     inv_gain,
+                    1.0,
                 );
             }
         }
     }
 
-    /// Light level, glare, noise and quantisation over the whole frame.
-    fn finish_full(&self, brightness: f32, glare: f32, noise: &[f32], seed: u64, out: &mut [u8]) {
+    /// Light level, glare, noise (times `sign`) and quantisation over the whole frame.
+    #[allow(clippy::too_many_arguments)]
+    fn finish_full(
+        &self,
+        brightness: f32,
+        glare: f32,
+        noise: &[f32],
+        seed: u64,
+        sign: f32,
+        out: &mut [u8],
+    ) {
         let rw = self.w * self.ch;
         let (inv_gain, read2) = self.noise_params();
         let noisy = !self.cam.noise.is_none() && noise.len() > rw;
@@ -1064,10 +1087,10 @@ impl CameraRenderer {
                         for (((o, &r), &n), &g) in row.iter_mut().zip(rad).zip(nz).zip(gr) {
                             let v = r * brightness + g * glare;
                             let s = (read2 + v.max(0.0) * inv_gain).sqrt();
-                            *o = quantise(v + s * n);
+                            *o = quantise(v + sign * s * n);
                         }
                     }
-                    None => quantise_span(rad, nz, row, brightness, read2, inv_gain),
+                    None => quantise_span(rad, nz, row, brightness, read2, inv_gain, sign),
                 }
             } else {
                 for (i, (o, &r)) in row.iter_mut().zip(rad).enumerate() {
@@ -1079,9 +1102,17 @@ impl CameraRenderer {
     }
 }
 
-/// `out = quantise(b r + sigma(b r) n)`; no noise when `nz` is empty.
+/// `out = quantise(b r + sign sigma(b r) n)`; no noise when `nz` is empty.
 #[inline]
-fn quantise_span(rad: &[f32], nz: &[f32], out: &mut [u8], b: f32, read2: f32, inv_gain: f32) {
+fn quantise_span(
+    rad: &[f32],
+    nz: &[f32],
+    out: &mut [u8],
+    b: f32,
+    read2: f32,
+    inv_gain: f32,
+    sign: f32,
+) {
     if nz.is_empty() {
         for (o, &r) in out.iter_mut().zip(rad) {
             *o = quantise(r * b);
@@ -1091,7 +1122,7 @@ fn quantise_span(rad: &[f32], nz: &[f32], out: &mut [u8], b: f32, read2: f32, in
     for ((o, &r), &n) in out.iter_mut().zip(rad).zip(nz) {
         let v = r * b;
         let s = (read2 + v.max(0.0) * inv_gain).sqrt();
-        *o = quantise(v + s * n);
+        *o = quantise(v + sign * s * n);
     }
 }
 

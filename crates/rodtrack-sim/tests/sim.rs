@@ -352,3 +352,57 @@ fn recording_is_written_and_deterministic() {
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&dir2);
 }
+
+/// Temporal noise matches the sensor model: variance = read^2 + mean / gain (in DN), on the
+/// still background and on a marker that is re-rendered every frame.
+#[test]
+fn noise_follows_the_sensor_model() {
+    let scene = SceneConfig::default();
+    let sc = Scenario::still(&scene, 1.0);
+    let cams = one_cam(PixelFormat::Mono8, true);
+    let model = cams[0].noise;
+    let mut s = Simulation::new(scene.clone(), cams, sc, RenderMode::Fast).unwrap();
+    let n = s.frame_bytes(0).unwrap();
+    let frames = 96;
+    // A field patch and the marker's quiet zone (paper) on rod 3.
+    let rc = &scene.rods[3];
+    let (fu, fv) = s.cameras()[0].camera.project([660.0, 250.0, 0.0]).unwrap();
+    let (pu, pv) = s
+        .project_rod_axis(0, 3, rc.marker_y(70.0, 0.0))
+        .unwrap()
+        .unwrap();
+    let patches = [
+        ((fu as usize - 10, fv as usize - 10), 20usize, 20usize),
+        ((pu as usize - 2, pv as usize - 1), 4, 3),
+    ];
+    let mut sums = vec![vec![(0.0f64, 0.0f64); 400]; 2];
+    let mut img = vec![0u8; n];
+    for f in 0..frames {
+        s.render(f, 0, &mut img).unwrap();
+        for (k, &((x0, y0), w, h)) in patches.iter().enumerate() {
+            for j in 0..h {
+                for i in 0..w {
+                    let v = img[(y0 + j) * 1440 + x0 + i] as f64;
+                    let e = &mut sums[k][j * w + i];
+                    e.0 += v;
+                    e.1 += v * v;
+                }
+            }
+        }
+    }
+    for (k, &(_, w, h)) in patches.iter().enumerate() {
+        let (mut var, mut mean) = (0.0, 0.0);
+        for e in &sums[k][..w * h] {
+            let m = e.0 / frames as f64;
+            var += (e.1 / frames as f64 - m * m) * frames as f64 / (frames - 1) as f64;
+            mean += m;
+        }
+        let (var, mean) = (var / (w * h) as f64, mean / (w * h) as f64);
+        let want = model.read_noise_dn.powi(2) + mean / model.gain_e_per_dn + 1.0 / 12.0;
+        eprintln!("patch {k}: mean {mean:.1} DN, variance {var:.2}, model {want:.2}");
+        assert!(
+            (var / want - 1.0).abs() < 0.25,
+            "patch {k}: variance {var}, model {want}"
+        );
+    }
+}
