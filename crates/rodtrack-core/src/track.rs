@@ -106,6 +106,12 @@ struct EnhancedState {
     profile: Vec<f32>,
     /// Phase sample angles (rad from the facing line) and their sin/cos of `f delta`.
     phase_delta: Vec<(f64, f64, f64, f64)>,
+    /// Marker `u` of the rows across white and black rings used to measure the shading.
+    white_u: Vec<f64>,
+    black_u: Vec<f64>,
+    /// Shading of white and black print at each phase sample angle (scratch).
+    white: Vec<f64>,
+    black: Vec<f64>,
 }
 
 /// Measures one rod in frames of one camera.
@@ -230,7 +236,39 @@ impl RodTracker {
                 (d, w, (cycles * d).sin(), (cycles * d).cos())
             })
             .collect();
+        // Rows across the middle of the longest white and black runs of the barcode: the print's
+        // shading across the rod (the light is fixed in the world, so it depends on the angle
+        // from the facing line, not on the rod's angle) is measured there every frame.
+        let run_rows = |black: bool| -> Vec<f64> {
+            let k = marker.kernel();
+            let mut best = (0usize, 0usize);
+            let mut i = 0;
+            while i < k.len() {
+                if k[i] == black {
+                    let j = (i..k.len()).find(|&j| k[j] != black).unwrap_or(k.len());
+                    if j - i > best.1 - best.0 {
+                        best = (i, j);
+                    }
+                    i = j;
+                } else {
+                    i += 1;
+                }
+            }
+            let centre =
+                marker.barcode_start_mm() + 0.5 * (best.0 + best.1) as f64 * marker.cell_mm();
+            let half = 0.5 * (best.1 - best.0) as f64 * marker.cell_mm();
+            if half >= marker.cell_mm() {
+                vec![centre - 0.4 * half, centre + 0.4 * half]
+            } else {
+                vec![centre]
+            }
+        };
+        let n_phase = count;
         EnhancedState {
+            white_u: run_rows(false),
+            black_u: run_rows(true),
+            white: vec![0.0; n_phase],
+            black: vec![0.0; n_phase],
             knots,
             coarse_s0: first,
             coarse_step: step,
@@ -530,6 +568,28 @@ impl RodTracker {
         let (_, alpha) = decode_bits(&samples[..bits], threshold);
         // 5. Phase across the rod over bit space 0, with the cylinder's projection.
         let c0 = m.bit_space_centre_mm(0);
+        // The shading of white and black print across the rod, from the barcode's rings.
+        for (rows_u, out) in [(&st.white_u, &mut st.white), (&st.black_u, &mut st.black)] {
+            out.iter_mut().for_each(|v| *v = 0.0);
+            for &u in rows_u.iter() {
+                let lp = st.knots.at(position + u);
+                for (o, &(d, ..)) in out.iter_mut().zip(&st.phase_delta) {
+                    let (x, y) = lp.offset(0.0, lp.radius_px * d.sin());
+                    *o += frame.luma_bilinear(x as f32, y as f32) as f64;
+                }
+            }
+            let inv = 1.0 / rows_u.len().max(1) as f64;
+            // Scale, then a 3-tap smoothing (the shading is smooth; this halves its noise).
+            let mut prev = out[0] * inv;
+            let n = out.len();
+            for j in 0..n {
+                let cur = out[j] * inv;
+                let next = if j + 1 < n { out[j + 1] * inv } else { cur };
+                out[j] = (prev + 2.0 * cur + next) * 0.25;
+                prev = cur;
+            }
+        }
+        let min_span = 0.2 * contrast;
         let (mut ss, mut cc, mut sw, mut sv) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let sigma = self.calib.enhanced.phase_sign as f64;
         // First pass: weighted mean; second: DFT of the mean-free signal. Both from the same
@@ -539,9 +599,11 @@ impl RodTracker {
         let mut sum_wc = 0.0f64;
         for r in rows {
             let lp: LinePoint = st.knots.at(position + c0 + r * m.bit_space_mm());
-            for &(d, w, sd, cd) in &st.phase_delta {
+            for (j, &(d, w, sd, cd)) in st.phase_delta.iter().enumerate() {
                 let (x, y) = lp.offset(0.0, lp.radius_px * d.sin());
-                let v = frame.luma_bilinear(x as f32, y as f32) as f64;
+                let raw = frame.luma_bilinear(x as f32, y as f32) as f64;
+                // Normalised to the print's own white (1) and black (0) at this angle.
+                let v = (raw - st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
                 sv += w * v;
                 sw += w;
                 ss += w * v * sd;
@@ -555,7 +617,8 @@ impl RodTracker {
         let cc = cc - mean * sum_wc;
         let phi = ss.atan2(cc);
         let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sw.max(1e-9);
-        let amp_ratio = amplitude / (0.5 * 4.0 / std::f64::consts::PI * contrast);
+        // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
+        let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
         let frac4 = (4.0 * ((-sigma * phi) / TAU).rem_euclid(1.0)
             + self.calib.enhanced.phase_offset_steps)
             .rem_euclid(4.0);

@@ -88,6 +88,15 @@ pub fn run(args: Args) -> Result<()> {
     let mut truth: Vec<(Measurement, Option<bool>)> = Vec::new();
     let mut proc_us: Vec<f64> = Vec::new();
     let mut render_s = 0.0;
+    // Per-row errors for analysis, when asked for (RODTRACK_ERRORS_CSV=path).
+    let mut errors_csv = match std::env::var_os("RODTRACK_ERRORS_CSV") {
+        Some(p) => {
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&p)?);
+            writeln!(f, "frame,camera,rod,true_position_mm,true_angle_rad,position_error_mm,angle_error_rad,theta_steps")?;
+            Some(f)
+        }
+        None => None,
+    };
     let tty = std::io::stdout().is_terminal();
     let mut last_draw = Instant::now();
     let t_loop = Instant::now();
@@ -115,7 +124,41 @@ pub fn run(args: Args) -> Result<()> {
                 p.process(&view, meta.frame_id, meta.timestamp_s, &mut prow)?;
                 all_paper.extend(prow.into_iter().map(|m| (m, None)));
             }
-            for t in sim.truth(f, c)? {
+            let tr_rows = sim.truth(f, c)?;
+            if let Some(w) = errors_csv.as_mut() {
+                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
+                    let Some(t) = tr_rows.iter().find(|t| t.m.rod == tr.rod()) else {
+                        continue;
+                    };
+                    if r.status == Status::Ok && t.visible {
+                        writeln!(
+                            w,
+                            "{f},{c},{},{:.4},{:.5},{:.4},{:.5},{:.3}",
+                            tr.rod(),
+                            t.m.position_mm,
+                            t.m.angle_rad,
+                            r.position_mm - t.m.position_mm,
+                            crate::score::wrap_angle(r.angle_rad - t.m.angle_rad),
+                            r.theta_steps
+                        )?;
+                    }
+                }
+            }
+            if std::env::var_os("RODTRACK_DEBUG").is_some() {
+                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
+                    let Some(t) = tr_rows.iter().find(|t| t.m.rod == tr.rod()) else {
+                        continue;
+                    };
+                    let e = crate::score::wrap_angle(r.angle_rad - t.m.angle_rad);
+                    if r.status == Status::Ok && e.abs() > 0.1 {
+                        eprintln!(
+                            "gross: frame {f} cam {c} rod {} err {e:.3} truth {:.3} w {:.1} rad/s step {} theta {:.2} amp {:.2} ncc {:.2} visible {}",
+                            tr.rod(), t.m.angle_rad, t.m.angular_velocity_rad_s, r.gray_step, r.theta_steps, r.amp_ratio, r.ncc, t.visible
+                        );
+                    }
+                }
+            }
+            for t in tr_rows {
                 truth.push((t.m, Some(t.visible)));
             }
         }
