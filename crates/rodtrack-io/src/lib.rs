@@ -13,6 +13,7 @@
 
 pub mod error;
 pub mod frame;
+pub mod marker_print;
 pub mod runtime;
 pub mod sink;
 pub mod source;
