@@ -102,16 +102,172 @@ struct EnhancedState {
     cells: Vec<f32>,
     cell_len: usize,
     edges: Vec<(f64, bool)>,
-    edge_offsets: Vec<f64>,
+    edge_offsets: Vec<(f64, f64)>,
+    /// The mm scale along the rod learnt from the barcode's length over all frames.
+    scale: ScaleFit,
     profile: Vec<f32>,
     /// Phase sample angles (rad from the facing line) and their sin/cos of `f delta`.
     phase_delta: Vec<(f64, f64, f64, f64)>,
+    /// Per radius correction `eps`: (weight, cos, sin) of `cycles * asin(sin(delta) / (1 + eps))`.
+    eps_tables: Vec<Vec<(f64, f64, f64)>>,
+    /// Matched-filter energy per `eps`, accumulated over frames.
+    eps_acc: Vec<f64>,
+    /// This frame's DFT per `eps` (scratch).
+    eps_z: Vec<(f64, f64)>,
+    /// Phase samples summed over the rows (scratch).
+    phase_v: Vec<f64>,
     /// Marker `u` of the rows across white and black rings used to measure the shading.
     white_u: Vec<f64>,
     black_u: Vec<f64>,
     /// Shading of white and black print at each phase sample angle (scratch).
     white: Vec<f64>,
     black: Vec<f64>,
+    /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame.
+    ring_u: Vec<f64>,
+    /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
+    centre: CentreFit,
+}
+
+/// The mm scale of the calibrated line, learnt over frames: each frame's barcode gives the
+/// relative scale error `b` at its place `s` (its 12 edges spread over 64 mm); a line
+/// `b(s) = b0 + b1 (s - mean s)` is fitted to all of them, and a position on the calibrated line
+/// is turned into true mm by integrating `1 - b(s)` from the reference. This removes what a
+/// single reference frame cannot see, e.g. a camera pitched along the rods (depth changing along
+/// the rod makes the image scale change along it).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ScaleFit {
+    n: f64,
+    s: f64,
+    ss: f64,
+    b: f64,
+    sb: f64,
+}
+
+impl ScaleFit {
+    const MAX_N: f64 = 5000.0;
+
+    fn coeffs(&self) -> Option<(f64, f64, f64)> {
+        if self.n < 5.0 {
+            return None;
+        }
+        let ms = self.s / self.n;
+        let mb = self.b / self.n;
+        let var = self.ss / self.n - ms * ms;
+        if self.n >= 20.0 && var > 100.0 {
+            Some((mb, (self.sb / self.n - ms * mb) / var, ms))
+        } else {
+            Some((mb, 0.0, ms))
+        }
+    }
+
+    /// Adds one frame's scale error `b` at `s`; refuses outliers.
+    pub fn add(&mut self, s_mm: f64, b: f64) -> bool {
+        if !(b.is_finite() && b.abs() < 0.05) {
+            return false;
+        }
+        if let Some((b0, b1, ms)) = self.coeffs() {
+            if (b - (b0 + b1 * (s_mm - ms))).abs() > 0.01 {
+                return false;
+            }
+        }
+        if self.n >= Self::MAX_N {
+            let k = (Self::MAX_N - 1.0) / self.n;
+            self.n *= k;
+            self.s *= k;
+            self.ss *= k;
+            self.b *= k;
+            self.sb *= k;
+        }
+        self.n += 1.0;
+        self.s += s_mm;
+        self.ss += s_mm * s_mm;
+        self.b += b;
+        self.sb += s_mm * b;
+        true
+    }
+
+    /// Calibrated-line coordinate `s` to true mm, keeping `s_ref` fixed.
+    pub fn to_true(&self, s_mm: f64, s_ref_mm: f64) -> f64 {
+        match self.coeffs() {
+            None => s_mm,
+            Some((b0, b1, ms)) => {
+                // integral of b from s_ref to s
+                let int = b0 * (s_mm - s_ref_mm)
+                    + 0.5 * b1 * ((s_mm - ms).powi(2) - (s_ref_mm - ms).powi(2));
+                s_mm - int
+            }
+        }
+    }
+}
+
+/// A least-squares line `offset(s) = a + b s` (px across the calibrated line, as a function of
+/// the axis coordinate in mm), and the mean radius ratio, accumulated over frames. The rod's
+/// axis does not move in the image, so every frame's silhouette adds to the same line: its
+/// noise averages out while the marker travels, and no single frame's noise reaches the phase.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CentreFit {
+    n: f64,
+    s: f64,
+    ss: f64,
+    e: f64,
+    se: f64,
+    ratio: f64,
+}
+
+impl CentreFit {
+    /// Weight kept for old samples once this many are in: slow drift (thermal, sag) is followed.
+    const MAX_N: f64 = 5000.0;
+
+    /// The fitted offset at `s` and the radius ratio; (0, 1) before any sample.
+    pub fn at(&self, s_mm: f64) -> (f64, f64) {
+        if self.n < 1.0 {
+            return (0.0, 1.0);
+        }
+        let ratio = self.ratio / self.n;
+        let ms = self.s / self.n;
+        let var = self.ss / self.n - ms * ms;
+        let me = self.e / self.n;
+        // A slope needs samples spread along the rod (10 mm std) and enough of them.
+        if self.n >= 20.0 && var > 100.0 {
+            let b = (self.se / self.n - ms * me) / var;
+            (me + b * (s_mm - ms), ratio)
+        } else {
+            (me, ratio)
+        }
+    }
+
+    /// Adds one silhouette sample; refuses one far from the current fit (hands, figures).
+    pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64) -> bool {
+        if self.n >= 5.0 {
+            let (e, r) = self.at(s_mm);
+            if (offset_px - e).abs() > 0.75 || (ratio - r).abs() > 0.1 {
+                return false;
+            }
+        } else if offset_px.abs() > 3.0 || (ratio - 1.0).abs() > 0.3 {
+            return false;
+        }
+        if self.n >= Self::MAX_N {
+            let k = (Self::MAX_N - 1.0) / self.n;
+            self.n *= k;
+            self.s *= k;
+            self.ss *= k;
+            self.e *= k;
+            self.se *= k;
+            self.ratio *= k;
+        }
+        self.n += 1.0;
+        self.s += s_mm;
+        self.ss += s_mm * s_mm;
+        self.e += offset_px;
+        self.se += s_mm * offset_px;
+        self.ratio += ratio;
+        true
+    }
+
+    /// Number of samples in the fit.
+    pub fn samples(&self) -> f64 {
+        self.n
+    }
 }
 
 /// Measures one rod in frames of one camera.
@@ -229,11 +385,24 @@ impl RodTracker {
         let periods = ((140f64.to_radians() / period).floor() as usize).max(1);
         let half = periods as f64 * period * 0.5;
         let count = periods * PHASE_SAMPLES_PER_PERIOD;
-        let phase_delta = (0..count)
+        let phase_delta: Vec<(f64, f64, f64, f64)> = (0..count)
             .map(|j| {
                 let d = -half + (j as f64 + 0.5) * (2.0 * half / count as f64);
                 let w = d.cos();
                 (d, w, (cycles * d).sin(), (cycles * d).cos())
+            })
+            .collect();
+        let eps_values: Vec<f64> = (-8..=12).map(|i| i as f64 * 0.01).collect();
+        let eps_tables: Vec<Vec<(f64, f64, f64)>> = eps_values
+            .iter()
+            .map(|eps| {
+                phase_delta
+                    .iter()
+                    .map(|&(d, w, _, _): &(f64, f64, f64, f64)| {
+                        let t = (d.sin() / (1.0 + eps)).clamp(-1.0, 1.0).asin();
+                        (w, (cycles * t).cos(), (cycles * t).sin())
+                    })
+                    .collect()
             })
             .collect();
         // Rows across the middle of the longest white and black runs of the barcode: the print's
@@ -264,7 +433,10 @@ impl RodTracker {
             }
         };
         let n_phase = count;
+        let ring_u = ring_rows(marker);
         EnhancedState {
+            ring_u,
+            centre: CentreFit::default(),
             white_u: run_rows(false),
             black_u: run_rows(true),
             white: vec![0.0; n_phase],
@@ -282,7 +454,12 @@ impl RodTracker {
             cell_len,
             edges: marker.barcode_edges_mm(),
             edge_offsets: Vec::with_capacity(64),
+            scale: ScaleFit::default(),
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
+            eps_tables,
+            eps_acc: vec![0.0; eps_values.len()],
+            eps_z: vec![(0.0, 0.0); eps_values.len()],
+            phase_v: vec![0.0; count],
             phase_delta,
         }
     }
@@ -514,7 +691,7 @@ impl RodTracker {
                 }
             }
             if let Some(o) = found {
-                st.edge_offsets.push(o);
+                st.edge_offsets.push((u_e, o));
             }
         }
         let n_edges = st.edge_offsets.len();
@@ -527,23 +704,63 @@ impl RodTracker {
                 ..Default::default()
             };
         }
-        st.edge_offsets.sort_unstable_by(|a, b| a.total_cmp(b));
-        let median = st.edge_offsets[n_edges / 2];
-        let (mut s1, mut sn, mut s2) = (0.0, 0usize, 0.0);
-        for &o in &st.edge_offsets {
+        st.edge_offsets.sort_unstable_by(|a, b| a.1.total_cmp(&b.1));
+        let median = st.edge_offsets[n_edges / 2].1;
+        // Inliers: offset and local scale by least squares, o = a + b (u - mean u).
+        let (mut n_in, mut su, mut so, mut suu, mut suo, mut soo) =
+            (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(u, o) in &st.edge_offsets {
             if (o - median).abs() < 0.25 * cell {
-                s1 += o;
-                s2 += o * o;
-                sn += 1;
+                n_in += 1.0;
+                su += u;
+                so += o;
+                suu += u * u;
+                suo += u * o;
+                soo += o * o;
             }
         }
-        let mean_off = if sn > 0 { s1 / sn as f64 } else { median };
-        let edge_std = if sn > 1 {
-            (s2 / sn as f64 - mean_off * mean_off).max(0.0).sqrt()
+        let (mean_off, edge_std, u_mean, slope) = if n_in >= 2.0 {
+            let mu = su / n_in;
+            let mo = so / n_in;
+            let vu = suu / n_in - mu * mu;
+            let b = if vu > 1e-9 {
+                (suo / n_in - mu * mo) / vu
+            } else {
+                0.0
+            };
+            let resid = (soo / n_in - mo * mo - b * b * vu).max(0.0).sqrt();
+            (mo, resid, mu, b)
         } else {
-            cell
+            (
+                median,
+                cell,
+                m.barcode_start_mm() + 0.5 * m.barcode_len_mm(),
+                0.0,
+            )
         };
-        let position = pos0 + mean_off;
+        // The edges' centroid on the calibrated line, and the local scale error there.
+        let s_centroid = pos0 + u_mean + mean_off;
+        if n_in >= 8.0 {
+            st.scale.add(s_centroid, slope);
+        }
+        let s_ref_c = self.calib.reference_position_mm + u_mean;
+        let position_out = st.scale.to_true(s_centroid, s_ref_c) - u_mean;
+        let position = s_centroid - u_mean;
+        // The rod's centre and apparent radius where the marker is: this frame's silhouettes of
+        // the marker's white rings feed the centre line learnt over all frames.
+        for &u in &st.ring_u {
+            let lp = st.knots.at(position + u);
+            if let Some((c, hw)) = ring_silhouette(frame, &lp) {
+                st.centre.add(position + u, c, hw / lp.radius_px);
+            }
+        }
+        let c0 = m.bit_space_centre_mm(0);
+        let fit = st.centre;
+        let radius_ratio = fit.at(position + c0).1;
+        // Anchored at the reference pose: calibration fixed the absolute centre (and with it the
+        // angle offset) there; what is learnt is how the centre runs away from it.
+        let s_ref = self.calib.reference_position_mm;
+        let centre = |u: f64| fit.at(position + u).0 - fit.at(s_ref + u).0;
         // 4. Gray bits at the centre of each bit space.
         let bits = m.bits() as usize;
         let mut samples = [0.0f32; 8];
@@ -567,14 +784,14 @@ impl RodTracker {
         }
         let (_, alpha) = decode_bits(&samples[..bits], threshold);
         // 5. Phase across the rod over bit space 0, with the cylinder's projection.
-        let c0 = m.bit_space_centre_mm(0);
         // The shading of white and black print across the rod, from the barcode's rings.
         for (rows_u, out) in [(&st.white_u, &mut st.white), (&st.black_u, &mut st.black)] {
             out.iter_mut().for_each(|v| *v = 0.0);
             for &u in rows_u.iter() {
                 let lp = st.knots.at(position + u);
+                let (e, r) = (centre(u), lp.radius_px * radius_ratio);
                 for (o, &(d, ..)) in out.iter_mut().zip(&st.phase_delta) {
-                    let (x, y) = lp.offset(0.0, lp.radius_px * d.sin());
+                    let (x, y) = lp.offset(0.0, e + r * d.sin());
                     *o += frame.luma_bilinear(x as f32, y as f32) as f64;
                 }
             }
@@ -590,33 +807,67 @@ impl RodTracker {
             }
         }
         let min_span = 0.2 * contrast;
-        let (mut ss, mut cc, mut sw, mut sv) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+
         let sigma = self.calib.enhanced.phase_sign as f64;
-        // First pass: weighted mean; second: DFT of the mean-free signal. Both from the same
-        // samples, stored on the stack in two passes over rows.
+        // The samples sit at x = R sin(delta) across the rod. If the true apparent radius
+        // differs by a factor (1 + eps), sample j really sees the surface angle
+        // asin(sin(delta_j) / (1 + eps)); a wrong eps stretches the pattern symmetrically and
+        // leaks the fundamental into its conjugate (an error at twice the stripe frequency).
+        // The radius is static, so eps is learnt over frames: every frame scores a grid of eps
+        // by the matched filter's energy, and the phase uses the best one so far.
         let rows = [-0.25, 0.0, 0.25];
-        let mut sum_ws = 0.0f64;
-        let mut sum_wc = 0.0f64;
+        let n_eps = st.eps_tables.len();
+        st.eps_z.iter_mut().for_each(|z| *z = (0.0, 0.0));
+        let mut sum_v = 0.0f64;
+        let mut sum_w = 0.0f64;
+        let n_d = st.phase_delta.len();
         for r in rows {
-            let lp: LinePoint = st.knots.at(position + c0 + r * m.bit_space_mm());
-            for (j, &(d, w, sd, cd)) in st.phase_delta.iter().enumerate() {
-                let (x, y) = lp.offset(0.0, lp.radius_px * d.sin());
+            let u = c0 + r * m.bit_space_mm();
+            let lp: LinePoint = st.knots.at(position + u);
+            let (e, rad) = (centre(u), lp.radius_px * radius_ratio);
+            for (j, &(d, w, ..)) in st.phase_delta.iter().enumerate() {
+                let (x, y) = lp.offset(0.0, e + rad * d.sin());
                 let raw = frame.luma_bilinear(x as f32, y as f32) as f64;
                 // Normalised to the print's own white (1) and black (0) at this angle.
                 let v = (raw - st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
-                sv += w * v;
-                sw += w;
-                ss += w * v * sd;
-                cc += w * v * cd;
-                sum_ws += w * sd;
-                sum_wc += w * cd;
+                st.phase_v[j] = if r == rows[0] { v } else { st.phase_v[j] + v };
+                sum_v += w * v;
+                sum_w += w;
             }
         }
-        let mean = sv / sw.max(1e-9);
-        let ss = ss - mean * sum_ws;
-        let cc = cc - mean * sum_wc;
+        let mean = sum_v / sum_w.max(1e-9);
+        for (k, table) in st.eps_tables.iter().enumerate() {
+            let (mut zr, mut zi) = (0.0f64, 0.0f64);
+            for j in 0..n_d {
+                let (w, c, s_) = table[j];
+                let v = st.phase_v[j] - 3.0 * mean;
+                zr += w * v * c;
+                zi += w * v * s_;
+            }
+            st.eps_z[k] = (zr, zi);
+        }
+        // Learn: accumulate normalised energies (slowly forgetting), pick the best eps.
+        let e_max = st
+            .eps_z
+            .iter()
+            .map(|z| z.0 * z.0 + z.1 * z.1)
+            .fold(0.0, f64::max);
+        if e_max > 0.0 {
+            for (acc, z) in st.eps_acc.iter_mut().zip(&st.eps_z) {
+                *acc = 0.995 * *acc + (z.0 * z.0 + z.1 * z.1) / e_max;
+            }
+        }
+        let best = (0..n_eps)
+            .max_by(|&a, &b| st.eps_acc[a].total_cmp(&st.eps_acc[b]))
+            .unwrap_or(n_eps / 2);
+        let (zr, zi) = if st.eps_acc[best] > 0.0 {
+            st.eps_z[best]
+        } else {
+            st.eps_z[n_eps / 2]
+        };
+        let (ss, cc) = (zi, zr);
         let phi = ss.atan2(cc);
-        let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sw.max(1e-9);
+        let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sum_w.max(1e-9);
         // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
         let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
         let frac4 = (4.0 * ((-sigma * phi) / TAU).rem_euclid(1.0)
@@ -656,7 +907,7 @@ impl RodTracker {
         let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
         let quality = (q_ncc * q_amp * q_edge * q_code).powf(0.25);
         RodResult {
-            position_mm: position,
+            position_mm: position_out,
             angle_rad: angle,
             quality: if status == Status::Ok {
                 quality
@@ -672,6 +923,82 @@ impl RodTracker {
             edge_std_mm: edge_std,
         }
     }
+}
+
+/// Marker `u` of the white rings used to find the rod's silhouette: the middle of the longest
+/// white run of the barcode and the gap before the Gray code (next to bit space 0).
+pub fn ring_rows(marker: &Marker) -> Vec<f64> {
+    let k = marker.kernel();
+    let mut rows = Vec::new();
+    let mut i = 0;
+    let mut best = (0usize, 0usize);
+    while i < k.len() {
+        if !k[i] {
+            let j = (i..k.len()).find(|&j| k[j]).unwrap_or(k.len());
+            if j - i > best.1 - best.0 {
+                best = (i, j);
+            }
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    let cell = marker.cell_mm();
+    let bc0 = marker.barcode_start_mm();
+    for c in best.0..best.1 {
+        rows.push(bc0 + (c as f64 + 0.5) * cell);
+    }
+    let gap0 = bc0 + marker.barcode_len_mm();
+    let gap = marker.gray_start_mm() - gap0;
+    if gap >= 2.0 {
+        rows.push(gap0 + 0.5 * gap);
+    }
+    rows
+}
+
+/// The silhouette of a white ring across the rod at `lp`: (centre offset along the normal,
+/// half width), px. Each edge is where the profile crosses halfway between the print inside
+/// and the background outside; `None` when the ring does not stand out from the background.
+pub fn ring_silhouette(frame: &FrameView, lp: &LinePoint) -> Option<(f64, f64)> {
+    let r = lp.radius_px;
+    let step = 0.5;
+    let at = |x: f64| {
+        let (px, py) = lp.offset(0.0, x);
+        frame.luma_bilinear(px as f32, py as f32) as f64
+    };
+    let mut edge = [0.0f64; 2];
+    for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
+        let x_in = side * 0.6 * r;
+        let x_out = side * 1.5 * r;
+        if !frame.contains(
+            (lp.x - lp.ty * x_out) as f32,
+            (lp.y + lp.tx * x_out) as f32,
+            1.0,
+        ) {
+            return None;
+        }
+        let inside = at(x_in);
+        let outside = at(x_out);
+        if inside - outside < 20.0 {
+            return None;
+        }
+        let level = 0.5 * (inside + outside);
+        let n = ((x_out - x_in).abs() / step) as usize;
+        let mut prev = (x_in, inside);
+        let mut found = None;
+        for i in 1..=n {
+            let x = x_in + side * step * i as f64;
+            let v = at(x);
+            if prev.1 >= level && v < level {
+                let f = (prev.1 - level) / (prev.1 - v);
+                found = Some(prev.0 + f * (x - prev.0));
+                break;
+            }
+            prev = (x, v);
+        }
+        edge[k] = found?;
+    }
+    Some((0.5 * (edge[0] + edge[1]), 0.5 * (edge[1] - edge[0])))
 }
 
 /// Fuses a phase fraction `frac4` in `[0, 4)` (position inside a group of 4 Gray steps) with

@@ -245,46 +245,35 @@ pub fn calibrate_rod(
         radius_px: kr,
     };
 
-    // Silhouette: lateral offset and radius along the visible rod (not over the Gray code,
-    // whose stripes make edges of their own).
-    let marker_gray = (
-        s_ref + marker.gray_start_mm() - 2.0,
-        s_ref + marker.length_mm(),
-    );
+    // The rod's centre and apparent radius at the marker, from the silhouettes of its white
+    // rings in the reference frame: a constant lateral correction of the line (the clicks'
+    // offset) and the radius ratio. The tracker repeats this measurement every frame.
     let mut offs = Vec::new();
     let mut ratios = Vec::new();
-    let mut s = s0;
-    while s <= s1 {
-        if !(s > marker_gray.0 && s < marker_gray.1) {
-            if let Some((c, w)) = silhouette(frame, &knots, s) {
-                let r = knots.at(s).radius_px;
-                if (w / (2.0 * r) - 1.0).abs() < 0.35 {
-                    offs.push((s, c));
-                    ratios.push(w / (2.0 * r));
-                }
-            }
+    for u in crate::track::ring_rows(&marker) {
+        let lp = knots.at(s_ref + u);
+        if let Some((c, hw)) = crate::track::ring_silhouette(frame, &lp) {
+            offs.push(c);
+            ratios.push(hw / lp.radius_px);
         }
-        s += 1.0;
     }
     let mut radius_ratio = 1.0;
-    if offs.len() >= 10 {
-        // Robust line fit of the lateral offset over s.
-        let (a, b) = robust_line(&offs);
-        ratios.sort_by(|x, y| x.total_cmp(y));
-        radius_ratio = ratios[ratios.len() / 2];
+    if offs.len() >= 2 {
+        let a = offs.iter().sum::<f64>() / offs.len() as f64;
+        radius_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
         for i in 0..knots.len() {
             let s = knots.s0_mm + i as f64 * knots.step_mm;
             let lp = knots.at(s);
-            let e = a + b * s;
-            knots.x_px[i] += -lp.ty * e;
-            knots.y_px[i] += lp.tx * e;
+            knots.x_px[i] += -lp.ty * a;
+            knots.y_px[i] += lp.tx * a;
             knots.radius_px[i] *= radius_ratio;
         }
     } else {
-        warnings.push(format!(
-            "rod silhouette found at only {} places: centre line and radius not refined",
-            offs.len()
-        ));
+        warnings.push(
+            "the marker's white rings do not stand out from the background: centre line and \
+             radius not refined"
+                .to_string(),
+        );
     }
 
     // Direction of the print across the rod: Gray code read on both sides of the centre line.
@@ -393,76 +382,6 @@ fn fit_affine(p: &[(f64, f64)]) -> (f64, f64, f64) {
     let a = my - b * mx;
     let rms = (p.iter().map(|q| (q.1 - a - b * q.0).powi(2)).sum::<f64>() / n).sqrt();
     (a, b, rms)
-}
-
-/// Line fit that drops points far from the median residual (figures, clutter).
-fn robust_line(p: &[(f64, f64)]) -> (f64, f64) {
-    let mut pts: Vec<(f64, f64)> = p.to_vec();
-    let (mut a, mut b, _) = fit_affine(&pts);
-    for _ in 0..4 {
-        let mut res: Vec<f64> = p.iter().map(|q| (q.1 - a - b * q.0).abs()).collect();
-        res.sort_by(|x, y| x.total_cmp(y));
-        let mad = res[res.len() / 2].max(0.02);
-        pts = p
-            .iter()
-            .filter(|q| (q.1 - a - b * q.0).abs() <= 3.0 * mad)
-            .copied()
-            .collect();
-        if pts.len() < 5 {
-            break;
-        }
-        (a, b, _) = fit_affine(&pts);
-    }
-    (a, b)
-}
-
-/// The rod's silhouette across the line at `s`: (centre offset along the normal, width), px.
-fn silhouette(frame: &FrameView, knots: &Knots, s: f64) -> Option<(f64, f64)> {
-    let lp = knots.at(s);
-    let r = lp.radius_px;
-    let step = 0.25;
-    let n = (4.0 * r / step) as usize;
-    let xs: Vec<f64> = (0..=n).map(|i| -2.0 * r + i as f64 * step).collect();
-    let mut v = Vec::with_capacity(xs.len());
-    for &x in &xs {
-        let (px, py) = lp.offset(0.0, x);
-        if !frame.contains(px as f32, py as f32, 1.0) {
-            return None;
-        }
-        v.push(frame.luma_bilinear(px as f32, py as f32) as f64);
-    }
-    let grad: Vec<f64> = (0..v.len())
-        .map(|i| {
-            if i == 0 || i + 1 == v.len() {
-                0.0
-            } else {
-                0.5 * (v[i + 1] - v[i - 1]).abs()
-            }
-        })
-        .collect();
-    let peak = |from: f64, to: f64| -> Option<f64> {
-        let mut best: Option<(usize, f64)> = None;
-        for (i, &x) in xs.iter().enumerate() {
-            if x >= from && x <= to && best.is_none_or(|b| grad[i] > b.1) {
-                best = Some((i, grad[i]));
-            }
-        }
-        let (i, g) = best?;
-        if g < 2.0 || i == 0 || i + 1 >= grad.len() {
-            return None;
-        }
-        let (a, b, c) = (grad[i - 1], grad[i], grad[i + 1]);
-        let den = a - 2.0 * b + c;
-        let o = if den.abs() > 1e-12 {
-            0.5 * (a - c) / den
-        } else {
-            0.0
-        };
-        Some(xs[i] + o.clamp(-0.5, 0.5) * step)
-    };
-    let left = peak(-1.6 * r, -0.5 * r)?;
-    let right = peak(0.5 * r, 1.6 * r)?;
-    Some((0.5 * (left + right), right - left))
 }
 
 /// +1 when the print angle grows along the line's normal, -1 otherwise; from Gray codes read
