@@ -3,6 +3,7 @@
 mod calibrate;
 mod calibration_io;
 mod demo;
+mod marker;
 mod score;
 mod simulate;
 mod track;
@@ -28,6 +29,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Track rods in recordings or live sources and write measurements.
     Track(track::Args),
+    /// Write the printable marker (SVG or PDF at exact physical size).
+    Marker(marker::Args),
     /// Score measurements against ground truth.
     Score(score::Args),
 }
@@ -40,6 +43,7 @@ fn main() {
         Command::Calibrate(a) => calibrate::run(a),
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),
+        Command::Marker(a) => marker::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
