@@ -21,7 +21,7 @@ echo "== video: tests"
 cargo test --release -p rodtrack-video --features video
 
 echo "== video: clippy"
-cargo clippy -p rodtrack-video --features video --all-targets -- -D warnings
+cargo clippy -p rodtrack-video --features video --all-targets --no-deps -- -D warnings
 
 echo "== video: decode speed (1440x1080)"
 cargo run --release -p rodtrack-video --features video --example decode_speed -- 60
