@@ -5,7 +5,9 @@ use crate::simulate::build;
 use anyhow::{Context, Result};
 use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
 use rodtrack_core::CameraIntrinsics;
-use rodtrack_core::{CameraPipeline, FrameView, Measurement, Mode, Status};
+use rodtrack_core::{
+    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
+};
 use std::io::{IsTerminal, Write};
 use std::time::Instant;
 
@@ -83,6 +85,10 @@ pub fn run(args: Args) -> Result<()> {
         .map(|c| sim.frame_bytes(c).map(|b| vec![0u8; b]))
         .collect::<Result<_, _>>()?;
     let mut rows: Vec<Measurement> = Vec::new();
+    let mut filtered: Vec<Measurement> = Vec::new();
+    let mut set_filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
+    let mut all_filtered: Vec<(Measurement, Option<bool>)> = Vec::new();
+    let mut all_fused: Vec<(Measurement, Option<bool>)> = Vec::new();
     let mut all: Vec<(Measurement, Option<bool>)> = Vec::new();
     let mut all_paper: Vec<(Measurement, Option<bool>)> = Vec::new();
     let mut truth: Vec<(Measurement, Option<bool>)> = Vec::new();
@@ -163,9 +169,27 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
         all.extend(rows.iter().map(|m| (*m, None)));
+        filtered.clear();
+        set_filter.process(&rows, &mut filtered);
+        for m in &filtered {
+            if m.camera == CameraId::Fused {
+                all_fused.push((*m, None));
+            } else {
+                all_filtered.push((*m, None));
+            }
+        }
         if last_draw.elapsed().as_millis() >= 100 || f + 1 == n {
             last_draw = Instant::now();
-            draw_table(&rows, f, n, &proc_us, t_loop.elapsed().as_secs_f64(), tty);
+            let shown: Vec<Measurement> = if ncam > 1 {
+                filtered
+                    .iter()
+                    .filter(|m| m.camera == CameraId::Fused)
+                    .copied()
+                    .collect()
+            } else {
+                filtered.clone()
+            };
+            draw_table(&shown, f, n, &proc_us, t_loop.elapsed().as_secs_f64(), tty);
         }
     }
     println!();
@@ -175,8 +199,14 @@ pub fn run(args: Args) -> Result<()> {
         render_s,
         median(&mut proc_us)
     );
-    println!("\naccuracy against ground truth, rodtrack (enhanced mode):");
+    println!("\naccuracy against ground truth, rodtrack (enhanced mode), each camera's raw measurements:");
     print_table(&score(&truth, &all));
+    println!("\nrodtrack, each camera through the temporal filter:");
+    print_table(&score(&truth, &all_filtered));
+    if ncam > 1 {
+        println!("\nrodtrack, cameras fused and filtered (one row per rod):");
+        print_table(&score(&truth, &all_fused));
+    }
     println!("\nthe paper's algorithm on the same frames (paper mode):");
     print_table(&score(&truth, &all_paper));
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
