@@ -31,8 +31,32 @@ enum Command {
     Track(track::Args),
     /// Write the printable marker (SVG or PDF at exact physical size).
     Marker(marker::Args),
+    /// List the GenICam cameras (USB3 Vision, GigE Vision) that are connected.
+    Cameras,
     /// Score measurements against ground truth.
     Score(score::Args),
+}
+
+#[cfg(feature = "genicam")]
+fn cameras() -> Result<()> {
+    let list = rodtrack_genicam::list_cameras()?;
+    if list.is_empty() {
+        println!("no GenICam camera found");
+    }
+    for c in list {
+        println!(
+            "{}  serial {}  {} {}  {}  {}",
+            c.id, c.serial, c.vendor, c.model, c.protocol, c.address
+        );
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "genicam"))]
+fn cameras() -> Result<()> {
+    anyhow::bail!(
+        "this build has no GenICam support: build with `--features genicam` (needs libaravis)"
+    )
 }
 
 fn main() {
@@ -44,6 +68,7 @@ fn main() {
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),
         Command::Marker(a) => marker::run(a),
+        Command::Cameras => cameras(),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

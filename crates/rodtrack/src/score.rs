@@ -224,7 +224,20 @@ pub fn print_table(table: &BTreeMap<Option<u32>, Stats>) {
 pub fn run(args: Args) -> Result<()> {
     let truth = read_rows(&args.truth)?;
     let measured = read_rows(&args.measured)?;
-    let table = score(&truth, &measured);
+    // Camera rows and fused rows are scored apart (fused rows have their own coverage).
+    let (fused, cams): (Vec<_>, Vec<_>) = measured
+        .into_iter()
+        .partition(|(m, _)| m.camera == CameraId::Fused);
+    if !fused.is_empty() && !cams.is_empty() {
+        println!("each camera:");
+        print_table(&score(&truth, &cams));
+        println!("\nfused:");
+    }
+    let table = if fused.is_empty() {
+        score(&truth, &cams)
+    } else {
+        score(&truth, &fused)
+    };
     print_table(&table);
     if let Some(p) = args.json {
         let v: Vec<_> = table

@@ -2,7 +2,7 @@
 
 use crate::calibration_io::read_calibration;
 use anyhow::{anyhow, bail, Context, Result};
-use rodtrack_core::{CameraPipeline, Measurement, Mode, PixelFormat};
+use rodtrack_core::{CameraPipeline, FrameSetFilter, Measurement, Mode, PixelFormat};
 use rodtrack_io::source::OpenOptions;
 use rodtrack_io::{
     CsvSink, FrameBuffer, FrameSource, JsonlSink, MeasurementSink, MultiSink, SourceFactory,
@@ -35,6 +35,9 @@ pub struct Args {
     /// Algorithm: `enhanced` (default) or `paper` (the published method, as a baseline).
     #[arg(long, default_value = "enhanced", value_parser = ["paper", "enhanced"])]
     pub mode: String,
+    /// Write each camera's raw measurements, without the temporal filter and fusion.
+    #[arg(long)]
+    pub raw: bool,
     /// Stop after this many frames per camera.
     #[arg(long)]
     pub max_frames: Option<u64>,
@@ -52,7 +55,7 @@ pub fn run(args: Args) -> Result<()> {
             args.inputs.len()
         );
     }
-    let factory = SourceFactory::new();
+    let factory = source_factory();
     let mut sources: Vec<Box<dyn FrameSource>> = Vec::new();
     let mut pipes = Vec::new();
     for (cam, input) in cal.cameras.iter().zip(&args.inputs) {
@@ -83,9 +86,11 @@ pub fn run(args: Args) -> Result<()> {
         });
     }
     let total = sources[0].info().frame_count;
+    let mut filter = (!args.raw).then(|| FrameSetFilter::new(mode, cal.cameras.len() > 1));
     let stats = track_sources(
         &mut sources,
         &mut pipes,
+        filter.as_mut(),
         &mut sink,
         &stop,
         args.max_frames,
@@ -98,6 +103,18 @@ pub fn run(args: Args) -> Result<()> {
     );
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// The frame sources of this build: image sequences and raw files always; video files and
+/// GenICam cameras with the `video` and `genicam` features.
+pub fn source_factory() -> SourceFactory {
+    #[allow(unused_mut)]
+    let mut factory = SourceFactory::new();
+    #[cfg(feature = "video")]
+    rodtrack_video::register(&mut factory);
+    #[cfg(feature = "genicam")]
+    rodtrack_genicam::register(&mut factory);
+    factory
 }
 
 /// Opens the file sink (and the UDP sink).
@@ -142,6 +159,7 @@ pub struct TrackStats {
 pub fn track_sources(
     sources: &mut [Box<dyn FrameSource>],
     pipes: &mut [CameraPipeline],
+    mut filter: Option<&mut FrameSetFilter>,
     sink: &mut dyn MeasurementSink,
     stop: &AtomicBool,
     max_frames: Option<u64>,
@@ -150,6 +168,7 @@ pub fn track_sources(
     let n = sources.len();
     let mut bufs: Vec<FrameBuffer> = (0..n).map(|_| FrameBuffer::new()).collect();
     let mut rows: Vec<Measurement> = Vec::with_capacity(64);
+    let mut filtered: Vec<Measurement> = Vec::with_capacity(64);
     let mut times_us: Vec<f64> = Vec::new();
     let mut stats = TrackStats::default();
     let mut next_id: Vec<u64> = vec![0; n];
@@ -193,8 +212,35 @@ pub fn track_sources(
                 }
             }
         }
-        sink.write(&rows).context("writing measurements")?;
-        stats.rows += rows.len() as u64;
+        let out = match filter.as_deref_mut() {
+            Some(f) => {
+                filtered.clear();
+                f.process(&rows, &mut filtered);
+                for d in f.disagreements() {
+                    eprintln!(
+                        "\nframe {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
+                        d.frame,
+                        d.rod,
+                        d.cameras[0],
+                        d.cameras[1],
+                        d.position_diff_mm,
+                        d.angle_diff_rad
+                    );
+                }
+                for o in f.out_of_sync() {
+                    eprintln!(
+                        "\nframe {}: camera {} out of sync by {:.2} ms",
+                        o.frame,
+                        o.camera,
+                        o.offset_s * 1e3
+                    );
+                }
+                &filtered
+            }
+            None => &rows,
+        };
+        sink.write(out).context("writing measurements")?;
+        stats.rows += out.len() as u64;
         stats.sets += 1;
         if last_print.elapsed().as_millis() > 250 {
             last_print = Instant::now();
