@@ -286,9 +286,9 @@ impl<'a> FrameView<'a> {
         self.luma_node((x - o).round() as isize, (y - o).round() as isize)
     }
 
-    /// Bilinear luminance at pixel position `(x, y)`. The scalar reference for the samplers'
-    /// precomputed tables.
-    pub fn luma_bilinear(&self, x: f32, y: f32) -> f32 {
+    /// Bilinear luminance at pixel position `(x, y)`: the plain reference written with
+    /// [`FrameView::luma_node`]; [`FrameView::luma_bilinear`] must equal it.
+    pub fn luma_bilinear_reference(&self, x: f32, y: f32) -> f32 {
         let o = self.node_offset();
         let gx = x - o;
         let gy = y - o;
@@ -302,6 +302,56 @@ impl<'a> FrameView<'a> {
         let c = self.luma_node(i0, j0 + 1);
         let d = self.luma_node(i0 + 1, j0 + 1);
         (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+    }
+
+    /// Bilinear luminance at pixel position `(x, y)` (the samplers' hot path). Away from the
+    /// border, an 8-bit frame is read directly: for Bayer, the bilinear mix of 2x2-block means is
+    /// a separable 3x3 of pixels with weights `((1-f)/2, 1/2, f/2)`, 9 reads instead of 16.
+    /// Near the border, and for other formats, it falls back to the reference.
+    #[inline]
+    pub fn luma_bilinear(&self, x: f32, y: f32) -> f32 {
+        if !self.format.is_16bit() && x >= 2.0 && y >= 2.0 {
+            let (w, h) = (self.width as f32, self.height as f32);
+            if x < w - 3.0 && y < h - 3.0 {
+                match self.format.luma_kind() {
+                    LumaKind::Bayer => {
+                        let gx = x - 0.5;
+                        let gy = y - 0.5;
+                        let i0 = gx.floor();
+                        let j0 = gy.floor();
+                        let fx = gx - i0;
+                        let fy = gy - j0;
+                        let base = j0 as usize * self.stride + i0 as usize;
+                        let cx = [(1.0 - fx) * 0.5, 0.5, fx * 0.5];
+                        let cy = [(1.0 - fy) * 0.5, 0.5, fy * 0.5];
+                        let mut acc = 0.0f32;
+                        for (r, wy) in cy.iter().enumerate() {
+                            let row =
+                                &self.data[base + r * self.stride..base + r * self.stride + 3];
+                            acc += wy
+                                * (cx[0] * row[0] as f32
+                                    + cx[1] * row[1] as f32
+                                    + cx[2] * row[2] as f32);
+                        }
+                        return acc;
+                    }
+                    LumaKind::Mono => {
+                        let i0 = x.floor();
+                        let j0 = y.floor();
+                        let fx = x - i0;
+                        let fy = y - j0;
+                        let base = j0 as usize * self.stride + i0 as usize;
+                        let r0 = &self.data[base..base + 2];
+                        let r1 = &self.data[base + self.stride..base + self.stride + 2];
+                        let top = r0[0] as f32 * (1.0 - fx) + r0[1] as f32 * fx;
+                        let bot = r1[0] as f32 * (1.0 - fx) + r1[1] as f32 * fx;
+                        return top * (1.0 - fy) + bot * fy;
+                    }
+                    LumaKind::Rgb => {}
+                }
+            }
+        }
+        self.luma_bilinear_reference(x, y)
     }
 
     /// True when the point lies inside the frame with `margin` pixels to spare.
@@ -368,6 +418,31 @@ mod tests {
         let f = FrameView::new(&data, w, h, stride, PixelFormat::Mono16).unwrap();
         assert!((f.luma_node(3, 2) - 23.0).abs() < 1e-4);
         assert!((f.luma_bilinear(1.5, 0.5) - 6.5).abs() < 1e-4);
+    }
+
+    proptest::proptest! {
+        /// The fast bilinear equals the plain reference, for every format, inside and near the
+        /// border, with a padded stride.
+        #[test]
+        fn fast_bilinear_equals_reference(x in -2.0f32..40.0, y in -2.0f32..30.0, seed in 0u64..1000) {
+            let (w, h, pad) = (37usize, 27usize, 5usize);
+            for fmt in PixelFormat::ALL {
+                let stride = w * fmt.bytes_per_pixel() + pad;
+                let mut st = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+                let data: Vec<u8> = (0..stride * h)
+                    .map(|_| {
+                        st ^= st << 13;
+                        st ^= st >> 7;
+                        st ^= st << 17;
+                        (st >> 24) as u8
+                    })
+                    .collect();
+                let f = FrameView::new(&data, w, h, stride, fmt).unwrap();
+                let a = f.luma_bilinear(x, y);
+                let b = f.luma_bilinear_reference(x, y);
+                proptest::prop_assert!((a - b).abs() < 1e-3, "{fmt}: {a} vs {b} at ({x}, {y})");
+            }
+        }
     }
 
     #[test]

@@ -70,7 +70,7 @@ const SEARCH_MARGIN_MM: f64 = 10.0;
 /// Fine-profile half length around an edge, in cells.
 const EDGE_HALF_CELLS: f64 = 0.5;
 /// Fine-profile samples per cell.
-const EDGE_SAMPLES_PER_CELL: usize = 16;
+const EDGE_SAMPLES_PER_CELL: usize = 10;
 /// Phase samples per stripe period.
 const PHASE_SAMPLES_PER_PERIOD: usize = 8;
 
@@ -126,6 +126,8 @@ struct EnhancedState {
     ring_u: Vec<f64>,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
     centre: CentreFit,
+    /// Frames processed (for decimating the learning).
+    frames_seen: u64,
 }
 
 /// The mm scale of the calibrated line, learnt over frames: each frame's barcode gives the
@@ -437,6 +439,7 @@ impl RodTracker {
         EnhancedState {
             ring_u,
             centre: CentreFit::default(),
+            frames_seen: 0,
             white_u: run_rows(false),
             black_u: run_rows(true),
             white: vec![0.0; n_phase],
@@ -748,10 +751,14 @@ impl RodTracker {
         let position = s_centroid - u_mean;
         // The rod's centre and apparent radius where the marker is: this frame's silhouettes of
         // the marker's white rings feed the centre line learnt over all frames.
-        for &u in &st.ring_u {
-            let lp = st.knots.at(position + u);
-            if let Some((c, hw)) = ring_silhouette(frame, &lp) {
-                st.centre.add(position + u, c, hw / lp.radius_px);
+        // Once the line is well learnt, every 4th frame is enough to follow slow changes.
+        st.frames_seen = st.frames_seen.wrapping_add(1);
+        if st.centre.samples() < 300.0 || st.frames_seen % 4 == 0 {
+            for &u in &st.ring_u {
+                let lp = st.knots.at(position + u);
+                if let Some((c, hw)) = ring_silhouette(frame, &lp) {
+                    st.centre.add(position + u, c, hw / lp.radius_px);
+                }
             }
         }
         let c0 = m.bit_space_centre_mm(0);
@@ -820,7 +827,6 @@ impl RodTracker {
         st.eps_z.iter_mut().for_each(|z| *z = (0.0, 0.0));
         let mut sum_v = 0.0f64;
         let mut sum_w = 0.0f64;
-        let n_d = st.phase_delta.len();
         for r in rows {
             let u = c0 + r * m.bit_space_mm();
             let lp: LinePoint = st.knots.at(position + u);
@@ -838,9 +844,8 @@ impl RodTracker {
         let mean = sum_v / sum_w.max(1e-9);
         for (k, table) in st.eps_tables.iter().enumerate() {
             let (mut zr, mut zi) = (0.0f64, 0.0f64);
-            for j in 0..n_d {
-                let (w, c, s_) = table[j];
-                let v = st.phase_v[j] - 3.0 * mean;
+            for (&(w, c, s_), &pv) in table.iter().zip(&st.phase_v) {
+                let v = pv - 3.0 * mean;
                 zr += w * v * c;
                 zi += w * v * s_;
             }
@@ -983,11 +988,16 @@ pub fn ring_silhouette(frame: &FrameView, lp: &LinePoint) -> Option<(f64, f64)> 
             return None;
         }
         let level = 0.5 * (inside + outside);
-        let n = ((x_out - x_in).abs() / step) as usize;
-        let mut prev = (x_in, inside);
+        // The edge lies near the apparent radius: scan 0.75 R .. 1.35 R.
+        let x_from = side * 0.75 * r;
+        let n = ((0.6 * r) / step) as usize;
+        let mut prev = (x_from, at(x_from));
+        if prev.1 < level {
+            return None;
+        }
         let mut found = None;
         for i in 1..=n {
-            let x = x_in + side * step * i as f64;
+            let x = x_from + side * step * i as f64;
             let v = at(x);
             if prev.1 >= level && v < level {
                 let f = (prev.1 - level) / (prev.1 - v);

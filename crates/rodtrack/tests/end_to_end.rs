@@ -1,6 +1,6 @@
 //! Fixed-seed end to end on the simulator: calibrate both cameras from simulated clicks and
 //! reference frames, track, and check accuracy against ground truth in both modes.
-#![allow(missing_docs)]
+#![allow(missing_docs, clippy::unwrap_used)]
 
 use rodtrack_core::calib::calibrate_rod;
 use rodtrack_core::{CameraIntrinsics, FrameView, Mode, RodTracker, Status};
