@@ -7,7 +7,7 @@
 use crate::calib::RodCalibration;
 use crate::decode::{decode_bits, paper_fuse, paper_phase, paper_threshold};
 use crate::frame::FrameView;
-use crate::line::{Knots, LinePoint, PaperLine};
+use crate::line::{Knots, LinePoint, PaperLine, PreparedKnots};
 use crate::marker::Marker;
 use crate::measurement::Status;
 use crate::signal::{
@@ -69,6 +69,8 @@ pub struct RodResult {
 const SEARCH_MARGIN_MM: f64 = 10.0;
 /// Fine-profile half length around an edge, in cells.
 const EDGE_HALF_CELLS: f64 = 0.5;
+/// Half width of the search window around the last frame's marker, mm.
+const SEARCH_WINDOW_MM: f64 = 20.0;
 /// Fine-profile samples per cell.
 const EDGE_SAMPLES_PER_CELL: usize = 10;
 /// Phase samples per stripe period.
@@ -87,7 +89,9 @@ struct PaperState {
 
 #[derive(Debug, Clone)]
 struct EnhancedState {
-    knots: Knots,
+    knots: PreparedKnots,
+    /// Coarse candidate of the last frame that was measured `ok` (search window centre).
+    last_k: Option<usize>,
     /// Axis coordinate of coarse sample 0, mm.
     coarse_s0: f64,
     coarse_step: f64,
@@ -350,7 +354,7 @@ impl RodTracker {
         width: usize,
         height: usize,
     ) -> EnhancedState {
-        let knots = calib.knots.clone();
+        let knots = PreparedKnots::new(&calib.knots);
         let cell_len = 4usize;
         let step = marker.cell_mm() / cell_len as f64;
         let first = calib.travel_mm[0] - SEARCH_MARGIN_MM + marker.barcode_start_mm();
@@ -437,6 +441,7 @@ impl RodTracker {
         let n_phase = count;
         let ring_u = ring_rows(marker);
         EnhancedState {
+            last_k: None,
             ring_u,
             centre: CentreFit::default(),
             frames_seen: 0,
@@ -485,7 +490,7 @@ impl RodTracker {
     }
     /// The enhanced line.
     pub fn knots(&self) -> &Knots {
-        &self.enhanced.knots
+        &self.calib.knots
     }
 
     /// Measures the rod in one frame. Allocates nothing.
@@ -582,32 +587,26 @@ impl RodTracker {
         let m = &self.marker;
         let st = &mut self.enhanced;
         let node_off = frame.node_offset() as f64;
-        // 1. Coarse line at 1/4 cell, nearest luma node.
-        for (v, n) in st.coarse.iter_mut().zip(&st.coarse_nodes) {
-            *v = match n {
-                Some((i, j)) => {
-                    let i = (*i as f64 - node_off).round() as isize;
-                    let j = (*j as f64 - node_off).round() as isize;
-                    frame.luma_node(i, j)
+        // 1-2. Coarse line at 1/4 cell (nearest luma node) and the NCC with the cell kernel in
+        // O(samples x cells): first in a window around the last frame's marker, and over the
+        // whole travel when that finds no clear peak inside the window.
+        let n_cand = st.corr.len();
+        let window = (SEARCH_WINDOW_MM / st.coarse_step).ceil() as usize;
+        let mut found = None;
+        if let Some(k0) = st.last_k {
+            let (lo, hi) = (k0.saturating_sub(window), (k0 + window).min(n_cand - 1));
+            if let Some((k, c, sub)) = coarse_search(st, frame, node_off, lo, hi) {
+                let inside = (k > lo || lo == 0) && (k < hi || hi == n_cand - 1);
+                if inside && c >= 0.8 {
+                    found = Some((k, c, sub));
                 }
-                None => 0.0,
-            };
-        }
-        // 2. NCC with the cell kernel in O(samples x cells).
-        prefix_sums(&st.coarse, &mut st.prefix, &mut st.prefix2);
-        ncc_cells_prefix(
-            &st.cells,
-            st.cell_len,
-            &st.prefix,
-            &st.prefix2,
-            &mut st.corr,
-        );
-        for (c, ok) in st.corr.iter_mut().zip(&st.valid) {
-            if !ok {
-                *c = -1.0;
             }
         }
-        let Some(k) = argmax(&st.corr) else {
+        if found.is_none() {
+            found = coarse_search(st, frame, node_off, 0, n_cand - 1);
+        }
+        st.last_k = None;
+        let Some((k, _, sub)) = found else {
             return RodResult {
                 status: Status::OutOfView,
                 ..Default::default()
@@ -629,7 +628,6 @@ impl RodTracker {
                 ..Default::default()
             };
         }
-        let sub = parabolic_offset(&st.corr, k) as f64;
         let pos0 = st.coarse_s0 + (k as f64 + sub) * st.coarse_step - m.barcode_start_mm();
         // Black and white levels from the cells' middle samples.
         let (mut w_sum, mut w_n, mut b_sum, mut b_n) = (0.0f64, 0usize, 0.0f64, 0usize);
@@ -911,6 +909,9 @@ impl RodTracker {
         let q_edge = (1.0 - edge_std / (0.2 * cell)).clamp(0.0, 1.0);
         let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
         let quality = (q_ncc * q_amp * q_edge * q_code).powf(0.25);
+        if status == Status::Ok {
+            st.last_k = Some(k);
+        }
         RodResult {
             position_mm: position_out,
             angle_rad: angle,
@@ -928,6 +929,54 @@ impl RodTracker {
             edge_std_mm: edge_std,
         }
     }
+}
+
+/// Samples the coarse line over candidates `lo..=hi` (and the kernel's length beyond) and
+/// correlates: the best candidate, its NCC and the sub-sample offset of the peak. Invalid
+/// candidates (window not wholly in the frame) never win.
+fn coarse_search(
+    st: &mut EnhancedState,
+    frame: &FrameView,
+    node_off: f64,
+    lo: usize,
+    hi: usize,
+) -> Option<(usize, f64, f64)> {
+    let kernel_n = st.cells.len() * st.cell_len;
+    let end = hi + kernel_n;
+    for idx in lo..end {
+        st.coarse[idx] = match st.coarse_nodes[idx] {
+            Some((i, j)) => {
+                let i = (i as f64 - node_off).round() as isize;
+                let j = (j as f64 - node_off).round() as isize;
+                frame.luma_node(i, j)
+            }
+            None => 0.0,
+        };
+    }
+    let len = end - lo;
+    prefix_sums(
+        &st.coarse[lo..end],
+        &mut st.prefix[..len + 1],
+        &mut st.prefix2[..len + 1],
+    );
+    ncc_cells_prefix(
+        &st.cells,
+        st.cell_len,
+        &st.prefix[..len + 1],
+        &st.prefix2[..len + 1],
+        &mut st.corr[lo..=hi],
+    );
+    for (c, ok) in st.corr[lo..=hi].iter_mut().zip(&st.valid[lo..=hi]) {
+        if !ok {
+            *c = -1.0;
+        }
+    }
+    let k = lo + argmax(&st.corr[lo..=hi])?;
+    if !st.valid[k] {
+        return None;
+    }
+    let sub = parabolic_offset(&st.corr[lo..=hi], k - lo) as f64;
+    Some((k, st.corr[k] as f64, sub))
 }
 
 /// Marker `u` of the white rings used to find the rod's silhouette: the middle of the longest
