@@ -293,8 +293,9 @@ fn software_triggered_pair_gives_synchronised_sets() {
     let _a = FakeCamera::start("127.0.0.1", "GV01");
     let _b = FakeCamera::start("127.0.0.2", "GV02");
     // The fake camera polls for software triggers at a fixed 25 Hz (its `trigger_frequency`),
-    // on wall-clock boundaries: trigger below that.
-    let common = "format=Mono8&width=640&height=480&packet_size=8192&trigger=software&fps=20\
+    // on wall-clock boundaries: a second trigger landing within one 40 ms poll is lost. Trigger
+    // at 10 Hz so that every trigger gets a poll of its own even on a loaded machine.
+    let common = "format=Mono8&width=640&height=480&packet_size=8192&trigger=software&fps=10\
                   &sync=pair&timestamps=host";
     let mut f = SourceFactory::new();
     rodtrack_genicam::register(&mut f);
@@ -354,7 +355,7 @@ fn software_triggered_pair_gives_synchronised_sets() {
         .map(|v| v[0].abs_diff(v[1]) as f64 * 1e-6)
         .fold(0.0, f64::max);
     println!(
-        "software-triggered pair at 20 Hz: {} sets, {} complete, max arrival skew {max_skew_ms:.1} ms, {:.1} sets/s",
+        "software-triggered pair at 10 Hz: {} sets, {} complete, max arrival skew {max_skew_ms:.1} ms, {:.1} sets/s",
         sets.len(),
         complete.len(),
         complete.len() as f64 / secs
@@ -369,9 +370,9 @@ fn software_triggered_pair_gives_synchronised_sets() {
         "{} of {n} sets complete",
         complete.len()
     );
-    // Both frames of a set answer the same trigger: within one fake poll period (40 ms) and
-    // less than one trigger period (50 ms).
-    assert!(max_skew_ms < 45.0, "skew {max_skew_ms} ms");
+    // Both frames of a set answer the same trigger: they arrive less than one trigger period
+    // (100 ms) apart; the fake camera's 40 ms poll usually makes it much less.
+    assert!(max_skew_ms < 100.0, "skew {max_skew_ms} ms");
 }
 
 #[test]
