@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The web console (rodtrack-console): installs Debian's chromium, then runs the console's tests
+# with the browser required (headless chromium driven over the DevTools protocol: the page
+# loads, shows frames, the plots advance, clicks become calibration points, the demo's
+# calibration equals the CLI's) and the overhead test (console < 2 % of the tracking time).
+# Non-interactive, run as root (CI). About 2-3 minutes on 2 cores with a warm target dir.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export DEBIAN_FRONTEND=noninteractive
+export CARGO_TERM_COLOR=never
+
+echo "== console: chromium"
+if command -v chromium >/dev/null 2>&1; then
+    echo "already installed: $(chromium --version 2>/dev/null || echo chromium)"
+else
+    apt-get update -y -qq
+    apt-get install -y -qq chromium >/dev/null
+fi
+
+echo "== console: tests (browser required)"
+RODTRACK_REQUIRE_BROWSER=1 cargo test -p rodtrack-console -- --test-threads 1
+
+echo "== console: clippy"
+cargo clippy -p rodtrack-console --all-targets --no-deps -- -D warnings

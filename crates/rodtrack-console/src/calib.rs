@@ -1,0 +1,315 @@
+//! The calibration service: per camera, the frozen frame and the calibration inputs being
+//! edited in the browser; calibration with [`rodtrack_core::calib::calibrate_rod`], exactly as
+//! `rodtrack calibrate` does it; the calibration file written as TOML.
+
+use crate::image::{to_pnm, OwnedFrame};
+use crate::ConsoleError;
+use rodtrack_core::calib::{
+    calibrate_rod, CalibrationFile, CalibrationInputs, CameraCalibration, ImageSize,
+    ReferenceFrames, ReferencePose, Residuals, RodInputs, CALIBRATION_VERSION,
+};
+use rodtrack_core::{CameraIntrinsics, LumaKind, MarkerSpec};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// What the console calibrates: the cameras' inputs (and reference frames, when there are
+/// some) and where the calibration file goes.
+#[derive(Debug, Clone, Default)]
+pub struct CalibrationContext {
+    /// Where "save" writes the calibration file (TOML); `None` disables saving.
+    pub out_path: Option<PathBuf>,
+    /// The cameras known from the start.
+    pub cameras: Vec<CameraSetup>,
+}
+
+/// One camera's starting point for calibration.
+#[derive(Debug, Clone)]
+pub struct CameraSetup {
+    /// Camera index (as in the rows and the calibration file).
+    pub index: u32,
+    /// The calibration inputs (rods, path points, reference poses) to start from.
+    pub inputs: CalibrationInputs,
+    /// The reference frame, frozen from the start (e.g. read from the inputs' folder).
+    pub reference: Option<OwnedFrame>,
+}
+
+/// How calibrating one rod went.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RodOutcome {
+    /// Rod id.
+    pub rod: u32,
+    /// The residuals, when calibration succeeded.
+    pub residuals: Option<Residuals>,
+    /// The error, when it failed.
+    pub error: Option<String>,
+}
+
+/// One camera in the calibration service.
+#[derive(Debug, Clone)]
+pub(crate) struct CalibCamera {
+    pub index: u32,
+    pub inputs: CalibrationInputs,
+    pub frozen: Option<OwnedFrame>,
+    pub outcomes: Vec<RodOutcome>,
+    pub calibration: Option<CameraCalibration>,
+}
+
+/// Every camera in the calibration service.
+#[derive(Debug, Default)]
+pub(crate) struct CalibState {
+    pub out_path: Option<PathBuf>,
+    pub cameras: Vec<CalibCamera>,
+    pub saved: Option<String>,
+}
+
+/// Default inputs for a camera that has none (the operator adds rods in the browser).
+pub fn default_inputs(index: u32, frame: &OwnedFrame) -> CalibrationInputs {
+    CalibrationInputs {
+        camera_name: format!("cam{index}"),
+        image_size: ImageSize {
+            width: frame.width(),
+            height: frame.height(),
+        },
+        pixel_format: frame.format().name().to_string(),
+        opencv_model_optional: None,
+        reference_frames: ReferenceFrames {
+            dir: format!("cam{index}"),
+            reference_frame: 0,
+        },
+        fps: None,
+        rods: Vec::new(),
+    }
+}
+
+/// A new rod's inputs: marker v1, no points, reference pose (0, 0).
+pub fn new_rod(rod: u32, travel_mm: [f64; 2]) -> RodInputs {
+    RodInputs {
+        rod,
+        path_points_px: Vec::new(),
+        travel_mm,
+        reference: ReferencePose {
+            frame: 0,
+            position_mm: 0.0,
+            angle_rad: 0.0,
+        },
+        marker: MarkerSpec::default(),
+    }
+}
+
+impl CalibState {
+    pub fn new(ctx: CalibrationContext) -> CalibState {
+        let mut cameras: Vec<CalibCamera> = ctx
+            .cameras
+            .into_iter()
+            .map(|c| CalibCamera {
+                index: c.index,
+                inputs: c.inputs,
+                frozen: c.reference,
+                outcomes: Vec::new(),
+                calibration: None,
+            })
+            .collect();
+        cameras.sort_by_key(|c| c.index);
+        CalibState {
+            out_path: ctx.out_path,
+            cameras,
+            saved: None,
+        }
+    }
+
+    pub fn camera_mut(&mut self, index: u32) -> Option<&mut CalibCamera> {
+        self.cameras.iter_mut().find(|c| c.index == index)
+    }
+
+    pub fn camera(&self, index: u32) -> Option<&CalibCamera> {
+        self.cameras.iter().find(|c| c.index == index)
+    }
+
+    /// Stores a frozen frame, creating the camera with default inputs when it is new.
+    pub fn freeze(&mut self, index: u32, frame: OwnedFrame) {
+        match self.camera_mut(index) {
+            Some(c) => {
+                c.frozen = Some(frame);
+                c.calibration = None;
+            }
+            None => {
+                let inputs = default_inputs(index, &frame);
+                self.cameras.push(CalibCamera {
+                    index,
+                    inputs,
+                    frozen: Some(frame),
+                    outcomes: Vec::new(),
+                    calibration: None,
+                });
+                self.cameras.sort_by_key(|c| c.index);
+            }
+        }
+    }
+
+    pub fn rod_mut(&mut self, camera: u32, rod: u32) -> Result<&mut RodInputs, ConsoleError> {
+        let cam = self
+            .camera_mut(camera)
+            .ok_or_else(|| ConsoleError::Camera {
+                camera,
+                reason: "not in the calibration (freeze a frame first)".into(),
+            })?;
+        cam.calibration = None;
+        cam.inputs
+            .rods
+            .iter_mut()
+            .find(|r| r.rod == rod)
+            .ok_or(ConsoleError::NoSuchRod { camera, rod })
+    }
+}
+
+/// Calibrates every rod of one camera on its frozen frame, as `rodtrack calibrate` does.
+/// Returns the per-rod outcomes and, when every rod succeeded, the camera's calibration.
+pub(crate) fn calibrate_camera(
+    cam: &CalibCamera,
+) -> Result<(Vec<RodOutcome>, Option<CameraCalibration>), ConsoleError> {
+    let camera = cam.index;
+    let frame = cam.frozen.as_ref().ok_or_else(|| ConsoleError::Camera {
+        camera,
+        reason: "no frozen frame to calibrate on".into(),
+    })?;
+    let view = frame.view()?;
+    let intrinsics = match &cam.inputs.opencv_model_optional {
+        Some(m) => Some(CameraIntrinsics::from_opencv(
+            m.camera_matrix,
+            &m.dist_coeffs,
+        )?),
+        None => None,
+    };
+    let mut outcomes = Vec::new();
+    let mut rods = Vec::new();
+    for r in &cam.inputs.rods {
+        match calibrate_rod(r, &view, intrinsics.as_ref()) {
+            Ok(c) => {
+                outcomes.push(RodOutcome {
+                    rod: r.rod,
+                    residuals: Some(c.residuals.clone()),
+                    error: None,
+                });
+                rods.push(c);
+            }
+            Err(e) => outcomes.push(RodOutcome {
+                rod: r.rod,
+                residuals: None,
+                error: Some(e.to_string()),
+            }),
+        }
+    }
+    let complete = !rods.is_empty() && rods.len() == cam.inputs.rods.len();
+    let calibration = complete.then(|| CameraCalibration {
+        name: cam.inputs.camera_name.clone(),
+        index: camera,
+        image_width: view.width(),
+        image_height: view.height(),
+        pixel_format: view.format().name().to_string(),
+        fps: cam.inputs.fps.unwrap_or(200.0),
+        opencv_model: cam.inputs.opencv_model_optional.clone(),
+        rods,
+    });
+    Ok((outcomes, calibration))
+}
+
+/// The header `rodtrack calibrate` writes above the TOML.
+const TOML_HEADER: &str =
+    "# rodtrack calibration file. Made by the rodtrack console; validated on load.\n\
+# knots: the rod's line every step_mm along its axis (enhanced mode);\n\
+# paper: the paper's parameters (O_m = offset_px, S_m = spacing_px, T_hat = period_px).\n\n";
+
+/// The calibration file of every camera (all must be calibrated), as TOML text.
+pub(crate) fn calibration_toml(cameras: &[CalibCamera]) -> Result<String, ConsoleError> {
+    if cameras.is_empty() {
+        return Err(ConsoleError::BadRequest {
+            field: "cameras",
+            reason: "no camera to save".into(),
+        });
+    }
+    let mut list = Vec::new();
+    for c in cameras {
+        let cal = c.calibration.clone().ok_or_else(|| ConsoleError::Camera {
+            camera: c.index,
+            reason: "not calibrated (every rod must calibrate before saving)".into(),
+        })?;
+        list.push(cal);
+    }
+    let file = CalibrationFile {
+        version: CALIBRATION_VERSION,
+        cameras: list,
+    };
+    file.validate()?;
+    let text = toml::to_string_pretty(&file).map_err(|e| ConsoleError::Serialize {
+        what: "the calibration",
+        reason: e.to_string(),
+    })?;
+    Ok(format!("{TOML_HEADER}{text}"))
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ConsoleError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(|source| ConsoleError::Write {
+        path: tmp.clone(),
+        source,
+    })?;
+    std::fs::rename(&tmp, path).map_err(|source| ConsoleError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// What "save" wrote.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Saved {
+    /// The calibration file.
+    pub calibration: PathBuf,
+    /// The calibration inputs written beside it (one JSON per camera, with its reference
+    /// frame), so that `rodtrack calibrate --inputs ...` reproduces the file.
+    pub inputs: Vec<PathBuf>,
+}
+
+/// Writes the calibration file and, in `<out>.inputs/`, each camera's inputs JSON and frozen
+/// reference frame (PNM).
+pub(crate) fn save(out: &Path, cameras: &[CalibCamera]) -> Result<Saved, ConsoleError> {
+    let text = calibration_toml(cameras)?;
+    let dir = out.with_extension("inputs");
+    let mut inputs_paths = Vec::new();
+    for c in cameras {
+        let Some(frame) = &c.frozen else { continue };
+        let name = format!("cam{}", c.index);
+        let frames_dir = dir.join(&name);
+        std::fs::create_dir_all(&frames_dir).map_err(|source| ConsoleError::Write {
+            path: frames_dir.clone(),
+            source,
+        })?;
+        let ext = if frame.format().luma_kind() == LumaKind::Rgb {
+            "ppm"
+        } else {
+            "pgm"
+        };
+        write_atomic(&frames_dir.join(format!("000000.{ext}")), &to_pnm(frame))?;
+        let mut inputs = c.inputs.clone();
+        inputs.reference_frames = ReferenceFrames {
+            dir: name.clone(),
+            reference_frame: 0,
+        };
+        for r in &mut inputs.rods {
+            r.reference.frame = 0;
+        }
+        let json = serde_json::to_string_pretty(&inputs).map_err(|e| ConsoleError::Serialize {
+            what: "the calibration inputs",
+            reason: e.to_string(),
+        })?;
+        let p = dir.join(format!("{name}.json"));
+        write_atomic(&p, json.as_bytes())?;
+        inputs_paths.push(p);
+    }
+    write_atomic(out, text.as_bytes())?;
+    Ok(Saved {
+        calibration: out.to_path_buf(),
+        inputs: inputs_paths,
+    })
+}

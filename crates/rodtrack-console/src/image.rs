@@ -1,0 +1,305 @@
+//! Owned frame copies and the cheap preview "demosaic for the eye".
+
+use rodtrack_core::{CoreError, FrameView, LumaKind, PixelFormat};
+
+/// An owned, tightly packed copy of a frame (the console's frozen and latest frames).
+#[derive(Debug, Clone)]
+pub struct OwnedFrame {
+    data: Vec<u8>,
+    stride: usize,
+    width: usize,
+    height: usize,
+    format: PixelFormat,
+    frame_id: u64,
+    timestamp_s: f64,
+}
+
+impl Default for OwnedFrame {
+    fn default() -> Self {
+        OwnedFrame {
+            data: Vec::new(),
+            stride: 0,
+            width: 0,
+            height: 0,
+            format: PixelFormat::Mono8,
+            frame_id: 0,
+            timestamp_s: 0.0,
+        }
+    }
+}
+
+impl OwnedFrame {
+    /// Copies a view (rows packed, stride dropped).
+    pub fn from_view(frame: &FrameView, frame_id: u64, timestamp_s: f64) -> OwnedFrame {
+        let mut f = OwnedFrame::default();
+        f.copy_from(frame, frame_id, timestamp_s);
+        f
+    }
+
+    /// Copies a view into this buffer, reusing its allocation when it is large enough.
+    pub fn copy_from(&mut self, frame: &FrameView, frame_id: u64, timestamp_s: f64) {
+        let row = frame.width() * frame.format().bytes_per_pixel();
+        let stride = frame.stride();
+        let src = frame.data();
+        self.data.clear();
+        if stride == row {
+            self.data.extend_from_slice(&src[..row * frame.height()]);
+        } else {
+            for chunk in src.chunks(stride).take(frame.height()) {
+                self.data.extend_from_slice(&chunk[..row]);
+            }
+        }
+        self.stride = row;
+        self.width = frame.width();
+        self.height = frame.height();
+        self.format = frame.format();
+        self.frame_id = frame_id;
+        self.timestamp_s = timestamp_s;
+    }
+
+    /// Takes the caller's frame buffer without copying: swaps it with this frame's buffer
+    /// (which the caller gets back, resized to the same length, to fill with a later frame).
+    /// The buffer is checked first; when it does not hold the frame described, nothing changes.
+    #[allow(clippy::too_many_arguments)]
+    pub fn swap_in(
+        &mut self,
+        buf: &mut Vec<u8>,
+        width: usize,
+        height: usize,
+        stride: usize,
+        format: PixelFormat,
+        frame_id: u64,
+        timestamp_s: f64,
+    ) -> Result<(), CoreError> {
+        FrameView::new(buf, width, height, stride, format)?;
+        let len = buf.len();
+        std::mem::swap(&mut self.data, buf);
+        buf.resize(len, 0);
+        self.stride = stride;
+        self.width = width;
+        self.height = height;
+        self.format = format;
+        self.frame_id = frame_id;
+        self.timestamp_s = timestamp_s;
+        Ok(())
+    }
+
+    /// A view of the copy; an error when nothing was copied yet.
+    pub fn view(&self) -> Result<FrameView<'_>, CoreError> {
+        FrameView::new(
+            &self.data,
+            self.width,
+            self.height,
+            self.stride,
+            self.format,
+        )
+    }
+
+    /// True before the first copy.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+    /// Width, px.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height, px.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Pixel format.
+    pub fn format(&self) -> PixelFormat {
+        self.format
+    }
+    /// The frame id given when it was copied.
+    pub fn frame_id(&self) -> u64 {
+        self.frame_id
+    }
+    /// The timestamp given when it was copied, s.
+    pub fn timestamp_s(&self) -> f64 {
+        self.timestamp_s
+    }
+    /// The bytes (rows `stride` bytes apart).
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+    /// Row stride, bytes.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
+/// A small image for the eye: 8-bit grey (1 channel) or RGB (3 channels), row-major, packed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Preview {
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// 1 (grey) or 3 (RGB).
+    pub channels: usize,
+    /// Downscale factor from the frame (full-resolution pixel = preview pixel x factor).
+    pub factor: usize,
+    /// The pixels.
+    pub pixels: Vec<u8>,
+}
+
+/// Colour channel (0 R, 1 G, 2 B) of Bayer pixel `(x % 2, y % 2)`.
+fn bayer_channels(format: PixelFormat) -> [[usize; 2]; 2] {
+    // [y % 2][x % 2]
+    match format {
+        PixelFormat::BayerRggb8 | PixelFormat::BayerRggb16 => [[0, 1], [1, 2]],
+        PixelFormat::BayerBggr8 | PixelFormat::BayerBggr16 => [[2, 1], [1, 0]],
+        PixelFormat::BayerGrbg8 | PixelFormat::BayerGrbg16 => [[1, 0], [2, 1]],
+        _ => [[1, 2], [0, 1]], // GBRG
+    }
+}
+
+/// Downscales a frame by block averaging so that its width is at most `max_width`: grey for
+/// mono, colour for RGB and Bayer (each block averages its own red, green and blue pixels, so a
+/// Bayer frame is demosaiced for free; the factor is even for Bayer).
+pub fn preview(frame: &FrameView, max_width: usize) -> Preview {
+    let (w, h) = (frame.width(), frame.height());
+    let kind = frame.format().luma_kind();
+    let mut f = w.div_ceil(max_width.max(1)).max(1);
+    if kind == LumaKind::Bayer && f % 2 == 1 {
+        f += 1;
+    }
+    let (pw, ph) = ((w / f).max(1), (h / f).max(1));
+    let channels = if kind == LumaKind::Mono { 1 } else { 3 };
+    let bpp = frame.format().bytes_per_pixel();
+    let is16 = frame.format().is_16bit();
+    let data = frame.data();
+    let stride = frame.stride();
+    let sample = |off: usize| -> u32 {
+        if is16 {
+            (u16::from_le_bytes([data[off], data[off + 1]]) >> 8) as u32
+        } else {
+            data[off] as u32
+        }
+    };
+    let mut acc = vec![0u32; pw * 3];
+    let mut out = Vec::with_capacity(pw * ph * channels);
+    let chan = bayer_channels(frame.format());
+    // Samples per channel in a block.
+    let per = match kind {
+        LumaKind::Bayer => [(f * f / 4) as u32, (f * f / 2) as u32, (f * f / 4) as u32],
+        _ => [(f * f) as u32; 3],
+    };
+    for oy in 0..ph {
+        acc.iter_mut().for_each(|a| *a = 0);
+        for y in oy * f..(oy + 1) * f {
+            let row = y * stride;
+            match kind {
+                LumaKind::Mono => {
+                    for (ox, a) in acc.iter_mut().take(pw).enumerate() {
+                        for x in ox * f..(ox + 1) * f {
+                            *a += sample(row + x * bpp);
+                        }
+                    }
+                }
+                LumaKind::Rgb => {
+                    for ox in 0..pw {
+                        for x in ox * f..(ox + 1) * f {
+                            let o = row + x * 3;
+                            acc[ox * 3] += sample(o);
+                            acc[ox * 3 + 1] += sample(o + 1);
+                            acc[ox * 3 + 2] += sample(o + 2);
+                        }
+                    }
+                }
+                LumaKind::Bayer => {
+                    let cy = chan[y % 2];
+                    for ox in 0..pw {
+                        for x in ox * f..(ox + 1) * f {
+                            acc[ox * 3 + cy[x % 2]] += sample(row + x * bpp);
+                        }
+                    }
+                }
+            }
+        }
+        for ox in 0..pw {
+            if channels == 1 {
+                out.push((acc[ox] / per[0]) as u8);
+            } else {
+                for c in 0..3 {
+                    out.push((acc[ox * 3 + c] / per[c]).min(255) as u8);
+                }
+            }
+        }
+    }
+    Preview {
+        width: pw,
+        height: ph,
+        channels,
+        factor: f,
+        pixels: out,
+    }
+}
+
+/// Writes a frame as binary PNM (P5 grey for mono and Bayer, 8 or 16 bit; P6 for RGB), the
+/// form `rodtrack calibrate` reads back (Bayer stored as mono).
+pub fn to_pnm(frame: &OwnedFrame) -> Vec<u8> {
+    let fmt = frame.format();
+    let (magic, maxval) = match (fmt.luma_kind(), fmt.is_16bit()) {
+        (LumaKind::Rgb, _) => ("P6", 255),
+        (_, true) => ("P5", 65535),
+        (_, false) => ("P5", 255),
+    };
+    let mut out = format!("{magic}\n{} {}\n{maxval}\n", frame.width(), frame.height()).into_bytes();
+    let row = frame.width() * fmt.bytes_per_pixel();
+    for r in frame
+        .data()
+        .chunks(frame.stride().max(1))
+        .take(frame.height())
+    {
+        let r = &r[..row.min(r.len())];
+        if fmt.is_16bit() {
+            // PNM stores 16-bit samples big endian.
+            for px in r.chunks_exact(2) {
+                out.push(px[1]);
+                out.push(px[0]);
+            }
+        } else {
+            out.extend_from_slice(r);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bayer_preview_is_the_colour_of_each_block() {
+        // R=200, G=100, B=40 everywhere, RGGB, with a padded stride.
+        let (w, h, stride) = (8, 6, 11);
+        let mut data = vec![7u8; stride * h];
+        for y in 0..h {
+            for x in 0..w {
+                data[y * stride + x] = [[200, 100], [100, 40]][y % 2][x % 2];
+            }
+        }
+        let f = FrameView::new(&data, w, h, stride, PixelFormat::BayerRggb8).unwrap();
+        let p = preview(&f, 3);
+        assert_eq!((p.width, p.height, p.channels, p.factor), (2, 1, 3, 4));
+        assert_eq!(p.pixels, vec![200, 100, 40, 200, 100, 40]);
+        let owned = OwnedFrame::from_view(&f, 5, 0.5);
+        assert_eq!(owned.data().len(), w * h);
+        assert_eq!(owned.view().unwrap().luma_node(2, 2), 110.0);
+    }
+
+    #[test]
+    fn mono_preview_averages_blocks() {
+        let data: Vec<u8> = (0..16).map(|i| (i * 10) as u8).collect();
+        let f = FrameView::packed(&data, 4, 4, PixelFormat::Mono8).unwrap();
+        let p = preview(&f, 2);
+        assert_eq!((p.width, p.height, p.channels), (2, 2, 1));
+        // Block (0,0): 0, 10, 40, 50.
+        assert_eq!(p.pixels[0], 25);
+        let pnm = to_pnm(&OwnedFrame::from_view(&f, 0, 0.0));
+        assert!(pnm.starts_with(b"P5\n4 4\n255\n"));
+        assert_eq!(pnm.len(), 11 + 16);
+    }
+}
