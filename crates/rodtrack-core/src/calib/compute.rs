@@ -73,20 +73,37 @@ pub fn calibrate_rod(
         });
     }
     let mut warnings = Vec::new();
-    let curve = CurveModel::fit(&inputs.path_points_px, intrinsics)
+    let mut curve = CurveModel::fit(&inputs.path_points_px, intrinsics)
         .ok_or_else(|| fail("the path points do not define a line (all the same point?)".into()))?;
-    let dists: Vec<f64> = inputs
-        .path_points_px
-        .iter()
-        .map(|p| curve.distance(*p))
-        .collect();
+    // With many points (an automatic sweep), drop those far from the fit and fit again.
+    let mut used: Vec<[f64; 2]> = inputs.path_points_px.clone();
+    if used.len() >= 6 {
+        for _ in 0..3 {
+            let mut d: Vec<f64> = used.iter().map(|p| curve.distance(*p)).collect();
+            d.sort_by(|a, b| a.total_cmp(b));
+            let limit = (3.0 * d[d.len() / 2]).max(0.3);
+            let kept: Vec<[f64; 2]> = used
+                .iter()
+                .copied()
+                .filter(|p| curve.distance(*p) <= limit)
+                .collect();
+            if kept.len() == used.len() || kept.len() < 5 {
+                break;
+            }
+            warnings.push(format!(
+                "{} path point(s) more than {limit:.2} px off the path were left out",
+                used.len() - kept.len()
+            ));
+            used = kept;
+            if let Some(c) = CurveModel::fit(&used, intrinsics) {
+                curve = c;
+            }
+        }
+    }
+    let dists: Vec<f64> = used.iter().map(|p| curve.distance(*p)).collect();
     let path_rms = (dists.iter().map(|d| d * d).sum::<f64>() / dists.len() as f64).sqrt();
     let path_max = dists.iter().cloned().fold(0.0, f64::max);
-    let lams: Vec<f64> = inputs
-        .path_points_px
-        .iter()
-        .map(|p| curve.project(*p))
-        .collect();
+    let lams: Vec<f64> = used.iter().map(|p| curve.project(*p)).collect();
     let spread_px = {
         let a = lams.iter().cloned().fold(f64::MAX, f64::min);
         let b = lams.iter().cloned().fold(f64::MIN, f64::max);

@@ -2,6 +2,7 @@
 
 pub mod compute;
 pub mod file;
+pub mod find;
 pub mod inputs;
 
 pub use compute::{calibrate_rod, DEFAULT_VIEW_ANGLE_DEG};
