@@ -1,11 +1,14 @@
 //! `rodtrack`: visual encoders for rods that slide and turn.
 
+mod bench_latency;
 mod calibrate;
 mod calibration_io;
+mod console;
 mod demo;
 mod marker;
 mod score;
 mod simulate;
+mod sim_source;
 mod track;
 
 use anyhow::Result;
@@ -33,8 +36,12 @@ enum Command {
     Marker(marker::Args),
     /// List the GenICam cameras (USB3 Vision, GigE Vision) that are connected.
     Cameras,
+    /// Serve the web console: live view, plots and calibration in the browser.
+    Console(console::Args),
     /// Score measurements against ground truth.
     Score(score::Args),
+    /// Latency of the live path on the real-time simulator (frame available to row written).
+    BenchLatency(bench_latency::Args),
 }
 
 #[cfg(feature = "genicam")]
@@ -69,6 +76,8 @@ fn main() {
         Command::Score(a) => score::run(a),
         Command::Marker(a) => marker::run(a),
         Command::Cameras => cameras(),
+        Command::Console(a) => console::run(a),
+        Command::BenchLatency(a) => bench_latency::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
