@@ -7,8 +7,8 @@ mod console;
 mod demo;
 mod marker;
 mod score;
-mod simulate;
 mod sim_source;
+mod simulate;
 mod track;
 
 use anyhow::Result;
