@@ -23,6 +23,10 @@ pub struct Args {
     /// Seed.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Also serve the web console at this address (e.g. 127.0.0.1:8620) while the demo runs,
+    /// and keep serving it afterwards until Ctrl-C.
+    #[arg(long)]
+    pub console: Option<std::net::SocketAddr>,
 }
 
 /// Runs the demo.
@@ -103,7 +107,15 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
-    let tty = std::io::stdout().is_terminal();
+    let console = match args.console {
+        Some(addr) => {
+            let c = rodtrack_console::Console::start(addr, None)?;
+            println!("web console: {}", c.url());
+            Some(c)
+        }
+        None => None,
+    };
+    let tty = std::io::stdout().is_terminal() && console.is_none();
     let mut last_draw = Instant::now();
     let t_loop = Instant::now();
     let n = sim.frame_count();
@@ -117,6 +129,17 @@ pub fn run(args: Args) -> Result<()> {
             let t1 = Instant::now();
             pipes[c].process(&view, meta.frame_id, meta.timestamp_s, &mut rows)?;
             proc_us.push(t1.elapsed().as_secs_f64() * 1e6);
+            if let Some(con) = console.as_ref() {
+                if con.wants_frame(c as u32) {
+                    let overlays: Vec<_> = pipes[c]
+                        .rods()
+                        .iter()
+                        .zip(pipes[c].last_results())
+                        .map(|(t, r)| rodtrack_console::overlays_for(t, r))
+                        .collect();
+                    con.publish_frame(c as u32, &view, meta.frame_id, meta.timestamp_s, &overlays);
+                }
+            }
             if std::env::var_os("RODTRACK_DEBUG").is_some() && f % 50 == 0 {
                 for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
                     eprintln!(
@@ -171,6 +194,19 @@ pub fn run(args: Args) -> Result<()> {
         all.extend(rows.iter().map(|m| (*m, None)));
         filtered.clear();
         set_filter.process(&rows, &mut filtered);
+        if let Some(con) = console.as_ref() {
+            con.publish_rows(&filtered);
+            if f % 50 == 0 {
+                let mut recent = proc_us[proc_us.len().saturating_sub(100)..].to_vec();
+                con.publish_stats(&rodtrack_console::PipelineStats {
+                    frames: f as u64 + 1,
+                    fps: (f + 1) as f64 / t_loop.elapsed().as_secs_f64().max(1e-9),
+                    frame_time_us: median(&mut recent) * ncam as f64,
+                    dropped_frames: 0,
+                    bad_frames: 0,
+                });
+            }
+        }
         for m in &filtered {
             if m.camera == CameraId::Fused {
                 all_fused.push((*m, None));
@@ -210,6 +246,10 @@ pub fn run(args: Args) -> Result<()> {
     println!("\nthe paper's algorithm on the same frames (paper mode):");
     print_table(&score(&truth, &all_paper));
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
+    if let Some(con) = console {
+        println!("web console still at {}: press Ctrl-C to quit", con.url());
+        con.wait();
+    }
     Ok(())
 }
 

@@ -1,11 +1,14 @@
 //! `rodtrack`: visual encoders for rods that slide and turn.
 
+mod bench_frames;
 mod bench_latency;
 mod calibrate;
 mod calibration_io;
 mod console;
 mod demo;
+mod evaluate;
 mod marker;
+mod plots;
 mod score;
 mod sim_source;
 mod simulate;
@@ -38,6 +41,10 @@ enum Command {
     Cameras,
     /// Serve the web console: live view, plots and calibration in the browser.
     Console(console::Args),
+    /// Run every simulator scenario in paper and enhanced mode; write a report with plots.
+    Evaluate(evaluate::Args),
+    /// Time the per-frame processing on recorded frames (median us as JSON on stdout).
+    BenchFrames(bench_frames::Args),
     /// Score measurements against ground truth.
     Score(score::Args),
     /// Latency of the live path on the real-time simulator (frame available to row written).
@@ -77,6 +84,8 @@ fn main() {
         Command::Marker(a) => marker::run(a),
         Command::Cameras => cameras(),
         Command::Console(a) => console::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
+        Command::BenchFrames(a) => bench_frames::run(a),
         Command::BenchLatency(a) => bench_latency::run(a),
     };
     if let Err(e) = result {
