@@ -129,6 +129,8 @@ pub struct SimSource {
     realtime: bool,
     /// Slot in `shared.delivered` (real time only).
     slot: Option<usize>,
+    /// How long the last frame took to render or copy.
+    prep: Duration,
     /// Frames rendered when opened (`prerender`), with their metadata.
     prerendered: Vec<(rodtrack_sim::FrameMeta, Vec<u8>)>,
 }
@@ -264,6 +266,7 @@ impl SimSource {
         let slot = realtime.then(|| shared.join());
         Ok(SimSource {
             slot,
+            prep: Duration::ZERO,
             prerendered,
             name: spec.input.clone(),
             frames: sim.frame_count(),
@@ -306,9 +309,22 @@ impl FrameSource for SimSource {
             name: self.name.clone(),
             reason: format!("frame {index}: {e}"),
         };
-        if self.realtime {
+        // Real time: frame `index` is triggered at `due`; it is prepared (rendered or copied)
+        // just before, so that the preparation does not compete for the CPU with the
+        // tracking of the previous frame.
+        let due = self.realtime.then(|| {
             self.shared.gate(index as u64);
-        }
+            let epoch = *self
+                .shared
+                .epoch
+                .get_or_init(|| Instant::now() + Duration::from_millis(50));
+            let due = epoch + Duration::from_secs_f64(index as f64 / self.fps);
+            let period = Duration::from_secs_f64(1.0 / self.fps);
+            let lead = (2 * self.prep + Duration::from_micros(200)).min(period);
+            sleep_until(due.checked_sub(lead).unwrap_or(due));
+            due
+        });
+        let prep_start = Instant::now();
         buf.reshape_packed(self.width, self.height, self.format);
         let meta = if self.prerendered.is_empty() {
             self.sim
@@ -341,24 +357,23 @@ impl FrameSource for SimSource {
         buf.reshape(meta.width, meta.height, meta.stride, meta.format);
         buf.meta.frame_id = meta.frame_id;
         buf.meta.timestamp_ns = Timestamp::from_secs_f64(meta.timestamp_s);
-        if self.realtime {
+        self.prep = prep_start.elapsed();
+        if let Some(due) = due {
             // Released at its trigger time, as a camera delivers it (exposure and readout are
-            // not modelled); rendering, the camera's work, happened before. Frame 0 is
-            // triggered shortly after the first call, to leave time for its rendering.
-            let epoch = *self
-                .shared
-                .epoch
-                .get_or_init(|| Instant::now() + Duration::from_millis(50));
-            let due = epoch + Duration::from_secs_f64(index as f64 / self.fps);
-            let now = Instant::now();
-            if due > now {
-                std::thread::sleep(due - now);
-            }
+            // not modelled). Frame 0 is triggered 50 ms after the first call of any camera.
+            sleep_until(due);
         }
         if let Some(slot) = self.slot {
             self.shared.delivered(slot, self.next as u64);
         }
         Ok(Some(()))
+    }
+}
+
+fn sleep_until(t: Instant) {
+    let now = Instant::now();
+    if t > now {
+        std::thread::sleep(t - now);
     }
 }
 

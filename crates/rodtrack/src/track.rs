@@ -179,6 +179,8 @@ pub struct FilterSink<S: MeasurementSink> {
     inner: S,
     out: Vec<Measurement>,
     warnings: u64,
+    /// Time of each `write` (filter, fusion and the inner sinks).
+    write_times: LatencyHistogram,
 }
 
 impl<S: MeasurementSink> FilterSink<S> {
@@ -189,7 +191,13 @@ impl<S: MeasurementSink> FilterSink<S> {
             inner,
             out: Vec::with_capacity(64),
             warnings: 0,
+            write_times: LatencyHistogram::new(),
         }
+    }
+
+    /// Time per `write` call (one frame set): filter, fusion and the inner sinks.
+    pub fn write_times(&self) -> LatencySummary {
+        self.write_times.summary()
     }
 
     /// Prints how many warnings were not printed.
@@ -213,6 +221,19 @@ impl<S: MeasurementSink> FilterSink<S> {
 
 impl<S: MeasurementSink> MeasurementSink for FilterSink<S> {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        let start = Instant::now();
+        let result = self.write_inner(rows);
+        self.write_times.record(start.elapsed());
+        result
+    }
+
+    fn flush(&mut self) -> Result<(), IoError> {
+        self.inner.flush()
+    }
+}
+
+impl<S: MeasurementSink> FilterSink<S> {
+    fn write_inner(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
         let Some(f) = self.filter.as_mut() else {
             return self.inner.write(rows);
         };
@@ -242,10 +263,6 @@ impl<S: MeasurementSink> MeasurementSink for FilterSink<S> {
             }
         }
         self.inner.write(&self.out)
-    }
-
-    fn flush(&mut self) -> Result<(), IoError> {
-        self.inner.flush()
     }
 }
 
