@@ -49,6 +49,9 @@ pub struct Stats {
     /// Rows not visible, reported ok, and wrong (angle off by more than 0.2 rad or position by
     /// more than 5 mm): the confident wrong values a controller must never get.
     pub wrong_ok: usize,
+    /// Ok rows whose unwrapped angle has lost or gained whole turns against the truth since the
+    /// first ok row of its camera and rod (a multi-turn encoder must count every turn).
+    pub turn_slips: usize,
     #[serde(skip)]
     acc: [f64; 4],
 }
@@ -171,6 +174,26 @@ pub fn score(
         out.entry(Some(m.rod)).or_default().add(ep, ea);
         out.entry(None).or_default().add(ep, ea);
     }
+    // Turn counting: per (camera, rod), the unwrapped angle against the truth's, with the whole
+    // turns between them fixed at the first ok row.
+    let mut origin: HashMap<(i64, u32), f64> = HashMap::new();
+    for (m, _) in measured {
+        if m.status != Status::Ok {
+            continue;
+        }
+        let found = match m.camera {
+            CameraId::Fused => t_any.get(&(m.frame, m.rod)).copied(),
+            _ => t.get(&key(m)).copied(),
+        };
+        let Some((tm, _)) = found else { continue };
+        let d = m.angle_unwrapped_rad - tm.angle_unwrapped_rad;
+        let k = (key(m).1, m.rod);
+        let o = *origin.entry(k).or_insert((d / TAU).round() * TAU);
+        if (d - o).abs() > std::f64::consts::PI {
+            out.entry(Some(m.rod)).or_default().turn_slips += 1;
+            out.entry(None).or_default().turn_slips += 1;
+        }
+    }
     for s in out.values_mut() {
         s.finish();
     }
@@ -198,7 +221,7 @@ pub fn print_table(table: &BTreeMap<Option<u32>, Stats>) {
     for (k, s) in rows {
         let name = k.map_or("all".to_string(), |r| r.to_string());
         println!(
-            "{:>5} {:>7} {:>9.3} {:>9.3} {:>9.3} {:>10.4} {:>10.4} {:>10.4} {:>6} {:>7.1}% {:>8} {:>8}",
+            "{:>5} {:>7} {:>9.3} {:>9.3} {:>9.3} {:>10.4} {:>10.4} {:>10.4} {:>6} {:>7.1}% {:>8} {:>8} {:>6}",
             name,
             s.n,
             s.pos_mean_mm,
@@ -210,13 +233,14 @@ pub fn print_table(table: &BTreeMap<Option<u32>, Stats>) {
             s.gross,
             100.0 * s.coverage,
             s.false_ok,
-            s.wrong_ok
+            s.wrong_ok,
+            s.turn_slips
         );
     }
     println!(
         "(mm and rad; gross: angle off by >= 2pi/32 or position by >= 5 mm, on visible rows; \
          false ok: reported ok while the marker is not wholly visible; wrong ok: those off by \
-         > 0.2 rad or > 5 mm)"
+         > 0.2 rad or > 5 mm; turns: ok rows whose turn count slipped)"
     );
 }
 
