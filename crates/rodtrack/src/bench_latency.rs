@@ -131,6 +131,7 @@ pub fn run(args: Args) -> Result<()> {
             label: format!("camera {} ({})", cal.index, cal.name),
             source,
             pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
+            console: None,
         });
     }
     let csv = match &args.out {

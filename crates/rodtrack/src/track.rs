@@ -24,6 +24,7 @@
 
 use crate::calibration_io::read_calibration;
 use anyhow::{anyhow, bail, Context, Result};
+use rodtrack_console::{Console, ConsoleHandle};
 use rodtrack_core::{CameraPipeline, FrameSetFilter, Measurement, Mode, PixelFormat};
 use rodtrack_io::runtime::{
     LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig, PipelineCounters,
@@ -66,6 +67,9 @@ pub struct Args {
     /// Write each camera's raw measurements, without the temporal filter and fusion.
     #[arg(long)]
     pub raw: bool,
+    /// Also serve the web console at this address (e.g. 127.0.0.1:8620): live view and plots.
+    #[arg(long)]
+    pub console: Option<std::net::SocketAddr>,
     /// Stop after this many frames per camera.
     #[arg(long)]
     pub max_frames: Option<u64>,
@@ -84,6 +88,14 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let factory = source_factory();
+    let console = match args.console {
+        Some(addr) => {
+            let c = Console::start(addr, None).context("starting the web console")?;
+            eprintln!("web console: {}", c.url());
+            Some(Arc::new(c))
+        }
+        None => None,
+    };
     let mut cameras = Vec::new();
     for (cam, input) in cal.cameras.iter().zip(&args.inputs) {
         let format: PixelFormat = cam.format()?;
@@ -101,16 +113,20 @@ pub fn run(args: Args) -> Result<()> {
             label: format!("camera {} ({})", cam.index, cam.name),
             source,
             pipe,
+            console: console.clone(),
         });
     }
     let sink = open_sinks(&args.out, args.format.as_deref(), args.udp.as_deref())?;
     let filter = (!args.raw).then(|| FrameSetFilter::new(mode, cal.cameras.len() > 1));
-    let mut sink = FilterSink::new(filter, sink);
+    let mut sink = ConsoleRows {
+        inner: FilterSink::new(filter, sink),
+        console: console.clone(),
+    };
     let stop = Arc::new(AtomicBool::new(false));
     install_ctrlc(stop.clone());
     let outcome = run_cameras(cameras, &mut sink, &stop, args.max_frames, true)?;
     eprintln!("{}", outcome.summary());
-    sink.print_summary();
+    sink.inner.print_summary();
     if outcome.report.sink_errors > 0 {
         bail!(
             "{} write(s) to the output failed (first: {}); rows written before are in {}",
@@ -121,6 +137,25 @@ pub fn run(args: Args) -> Result<()> {
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// Passes rows on to `inner` and shows them in the web console's plots.
+struct ConsoleRows<S> {
+    inner: S,
+    console: Option<Arc<ConsoleHandle>>,
+}
+
+impl<S: MeasurementSink> MeasurementSink for ConsoleRows<S> {
+    fn write(&mut self, rows: &[Measurement]) -> Result<(), rodtrack_io::IoError> {
+        let r = self.inner.write(rows);
+        if let Some(c) = &self.console {
+            c.publish_rows(rows);
+        }
+        r
+    }
+    fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
+        self.inner.flush()
+    }
 }
 
 /// The frame sources of this build: image sequences, raw files and the simulator (`sim://`)
@@ -274,6 +309,8 @@ pub struct TrackCamera {
     pub source: Box<dyn FrameSource>,
     /// The camera's tracker.
     pub pipe: CameraPipeline,
+    /// The web console to show this camera's frames in, if any.
+    pub console: Option<Arc<ConsoleHandle>>,
 }
 
 /// Time spent in one camera's tracker, per frame.
@@ -395,7 +432,9 @@ pub fn run_cameras(
             label,
             source,
             mut pipe,
+            console,
         } = cam;
+        let cam_index = pipe.index();
         let source: Box<dyn FrameSource> = match max_frames {
             Some(left) => Box::new(Limit {
                 inner: source,
@@ -411,9 +450,23 @@ pub fn run_cameras(
                 let ts = meta.timestamp_ns.as_secs_f64();
                 let start = Instant::now();
                 let result = match frame {
-                    Ok(view) => pipe
-                        .process(&view, meta.frame_id, ts, rows)
-                        .map_err(|e| e.to_string()),
+                    Ok(view) => {
+                        let r = pipe
+                            .process(&view, meta.frame_id, ts, rows)
+                            .map_err(|e| e.to_string());
+                        if let (Ok(()), Some(c)) = (&r, console.as_ref()) {
+                            if c.wants_frame(cam_index) {
+                                let overlays: Vec<_> = pipe
+                                    .rods()
+                                    .iter()
+                                    .zip(pipe.last_results())
+                                    .map(|(t, r)| rodtrack_console::overlays_for(t, r))
+                                    .collect();
+                                c.publish_frame(cam_index, &view, meta.frame_id, ts, &overlays);
+                            }
+                        }
+                        r
+                    }
                     Err(e) => Err(e.to_string()),
                 };
                 match result {
