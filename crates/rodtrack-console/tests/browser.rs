@@ -248,6 +248,9 @@ fn demo_in_the_browser_screenshot_and_calibration_equal_to_the_cli() {
         assert!(png.starts_with(b"\x89PNG"), "not a PNG");
         let target =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/console-demo.png");
+        if let Some(dir) = target.parent() {
+            std::fs::create_dir_all(dir).unwrap();
+        }
         std::fs::write(&target, &png).unwrap();
         eprintln!("screenshot: {} ({} bytes)", target.display(), png.len());
         if std::env::var("RODTRACK_UPDATE_SCREENSHOT").as_deref() == Ok("1") {
