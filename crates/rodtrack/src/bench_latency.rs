@@ -16,8 +16,8 @@
 
 use crate::track::{install_ctrlc, run_cameras, FilterSink, TrackCamera};
 use anyhow::{Context, Result};
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Mode};
+use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::{CameraPipeline, FrameSetFilter, Mode};
 use rodtrack_io::source::OpenOptions;
 use rodtrack_io::CsvSink;
 use std::path::PathBuf;
@@ -64,35 +64,7 @@ fn calibrate_sim_camera(
     c: usize,
     seed: u64,
 ) -> Result<CameraCalibration> {
-    let inputs = sim.calibration_inputs(c, seed)?;
-    let mut buf = vec![0u8; sim.frame_bytes(c)?];
-    let meta = sim.render_reference(c, &mut buf)?;
-    let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
-    let intr = match &inputs.opencv_model_optional {
-        Some(m) => Some(CameraIntrinsics::from_opencv(
-            m.camera_matrix,
-            &m.dist_coeffs,
-        )?),
-        None => None,
-    };
-    let rods = inputs
-        .rods
-        .iter()
-        .map(|r| {
-            calibrate_rod(r, &view, intr.as_ref())
-                .with_context(|| format!("camera {c}: calibrating rod {}", r.rod))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(CameraCalibration {
-        name: inputs.camera_name.clone(),
-        index: c as u32,
-        image_width: meta.width,
-        image_height: meta.height,
-        pixel_format: meta.format.name().to_string(),
-        fps: inputs.fps.unwrap_or(200.0),
-        opencv_model: inputs.opencv_model_optional.clone(),
-        rods,
-    })
+    Ok(crate::simulate::calibrate_sim_camera(sim, c, seed)?.3)
 }
 
 /// Runs the benchmark.

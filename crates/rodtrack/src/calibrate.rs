@@ -113,6 +113,41 @@ pub fn calibrate_camera(
     })
 }
 
+/// Calibrates every rod of one camera from its inputs and a reference frame already in memory
+/// (all rods at their reference pose in that frame).
+pub fn calibrate_from_view(
+    inputs: &CalibrationInputs,
+    view: &FrameView,
+    index: u32,
+    default_fps: f64,
+) -> Result<CameraCalibration> {
+    let intrinsics = match &inputs.opencv_model_optional {
+        Some(m) => Some(
+            CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs)
+                .with_context(|| format!("camera {index}: field `opencv_model_optional`"))?,
+        ),
+        None => None,
+    };
+    let rods = inputs
+        .rods
+        .iter()
+        .map(|r| {
+            calibrate_rod(r, view, intrinsics.as_ref())
+                .with_context(|| format!("camera {index}: calibrating rod {}", r.rod))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(CameraCalibration {
+        name: inputs.camera_name.clone(),
+        index,
+        image_width: view.width(),
+        image_height: view.height(),
+        pixel_format: view.format().name().to_string(),
+        fps: inputs.fps.unwrap_or(default_fps),
+        opencv_model: inputs.opencv_model_optional.clone(),
+        rods,
+    })
+}
+
 /// Prints per-rod residuals and warnings.
 pub fn print_report(cam: &CameraCalibration) {
     println!("camera {} ({}):", cam.index, cam.name);

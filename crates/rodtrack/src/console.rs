@@ -8,10 +8,9 @@ use rodtrack_console::{
     overlays_for, CalibrationContext, CameraSetup, Console, ConsoleHandle, OwnedFrame,
     PipelineStats, RodOverlay,
 };
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
+
 use rodtrack_core::{
-    CameraId, CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode,
-    PixelFormat,
+    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, PixelFormat,
 };
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
@@ -170,34 +169,10 @@ fn run_demo(args: &Args) -> Result<()> {
     let mut cals = Vec::new();
     let mut setups = Vec::new();
     for c in 0..ncam {
-        let inputs = sim.calibration_inputs(c, args.seed)?;
-        let mut buf = vec![0u8; sim.frame_bytes(c)?];
-        let meta = sim.render_reference(c, &mut buf)?;
+        let (inputs, buf, meta, cal) =
+            crate::simulate::calibrate_sim_camera(&mut sim, c, args.seed)?;
         let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
-        let intr = match &inputs.opencv_model_optional {
-            Some(m) => Some(CameraIntrinsics::from_opencv(
-                m.camera_matrix,
-                &m.dist_coeffs,
-            )?),
-            None => None,
-        };
-        let mut rods = Vec::new();
-        for r in &inputs.rods {
-            rods.push(
-                calibrate_rod(r, &view, intr.as_ref())
-                    .with_context(|| format!("camera {c}: calibrating rod {}", r.rod))?,
-            );
-        }
-        cals.push(CameraCalibration {
-            name: inputs.camera_name.clone(),
-            index: c as u32,
-            image_width: meta.width,
-            image_height: meta.height,
-            pixel_format: meta.format.name().to_string(),
-            fps: inputs.fps.unwrap_or(fps),
-            opencv_model: inputs.opencv_model_optional.clone(),
-            rods,
-        });
+        cals.push(cal);
         setups.push(CameraSetup {
             index: c as u32,
             inputs,

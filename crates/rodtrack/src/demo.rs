@@ -2,9 +2,7 @@
 
 use crate::score::{print_table, score};
 use crate::simulate::build;
-use anyhow::{Context, Result};
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::CameraIntrinsics;
+use anyhow::Result;
 use rodtrack_core::{
     CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
 };
@@ -42,39 +40,12 @@ pub fn run(args: Args) -> Result<()> {
     // about 1 px error) and a reference frame.
     let mut cals = Vec::new();
     for c in 0..ncam {
-        let inputs = sim.calibration_inputs(c, args.seed)?;
-        let bytes = sim.frame_bytes(c)?;
-        let mut buf = vec![0u8; bytes];
-        let meta = sim.render_reference(c, &mut buf)?;
-        let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
-        let intr = match &inputs.opencv_model_optional {
-            Some(m) => Some(CameraIntrinsics::from_opencv(
-                m.camera_matrix,
-                &m.dist_coeffs,
-            )?),
-            None => None,
-        };
-        let mut rods = Vec::new();
-        for r in &inputs.rods {
-            rods.push(
-                calibrate_rod(r, &view, intr.as_ref())
-                    .with_context(|| format!("camera {c}: calibrating rod {}", r.rod))?,
-            );
-        }
+        let (_, _, _, cal) = crate::simulate::calibrate_sim_camera(&mut sim, c, args.seed)?;
         println!(
             "calibrated camera {c}: rods {:?}",
-            rods.iter().map(|r| r.rod).collect::<Vec<_>>()
+            cal.rods.iter().map(|r| r.rod).collect::<Vec<_>>()
         );
-        cals.push(CameraCalibration {
-            name: inputs.camera_name.clone(),
-            index: c as u32,
-            image_width: meta.width,
-            image_height: meta.height,
-            pixel_format: meta.format.name().to_string(),
-            fps: inputs.fps.unwrap_or(200.0),
-            opencv_model: inputs.opencv_model_optional.clone(),
-            rods,
-        });
+        cals.push(cal);
     }
     // 2. Track every frame in both modes: rodtrack's and the paper's, on the same frames.
     let mut pipes: Vec<CameraPipeline> = cals

@@ -51,6 +51,29 @@ pub fn build(
     Ok(Simulation::new(scene, default_cameras(), sc, mode)?.with_seed(seed))
 }
 
+/// Calibrates camera `c` of a simulation as an operator would: its simulated clicks (about
+/// 1 px of error) and a rendered reference frame. Returns the inputs, the reference frame and
+/// the calibration.
+pub fn calibrate_sim_camera(
+    sim: &mut Simulation,
+    c: usize,
+    seed: u64,
+) -> Result<(
+    rodtrack_core::calib::CalibrationInputs,
+    Vec<u8>,
+    rodtrack_sim::FrameMeta,
+    rodtrack_core::calib::CameraCalibration,
+)> {
+    let inputs = sim.calibration_inputs(c, seed)?;
+    let mut buf = vec![0u8; sim.frame_bytes(c)?];
+    let meta = sim.render_reference(c, &mut buf)?;
+    let view =
+        rodtrack_core::FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
+    let fps = 1.0 / sim.timestamp_s(1).max(1e-6);
+    let cal = crate::calibrate::calibrate_from_view(&inputs, &view, c as u32, fps)?;
+    Ok((inputs, buf, meta, cal))
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     let mut sim = build(&args.scenario, args.frames, args.seed, args.quality)?;
