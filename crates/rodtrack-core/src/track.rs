@@ -142,28 +142,62 @@ struct EnhancedState {
 /// the rod makes the image scale change along it).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ScaleFit {
+    line: LineFit,
+}
+
+/// A running least-squares line `v(s) = a + b (s - mean s)` over samples `(s, v)`, slowly
+/// forgetting old samples once `MAX_N` are in (to follow slow drift).
+#[derive(Debug, Clone, Copy, Default)]
+struct LineFit {
     n: f64,
     s: f64,
     ss: f64,
-    b: f64,
-    sb: f64,
+    v: f64,
+    sv: f64,
 }
 
-impl ScaleFit {
+impl LineFit {
     const MAX_N: f64 = 5000.0;
 
+    /// (mean v, slope, mean s); the slope is 0 until at least 20 samples spread over 10 mm
+    /// (std) are in. `None` before 5 samples.
     fn coeffs(&self) -> Option<(f64, f64, f64)> {
         if self.n < 5.0 {
             return None;
         }
         let ms = self.s / self.n;
-        let mb = self.b / self.n;
+        let mv = self.v / self.n;
         let var = self.ss / self.n - ms * ms;
         if self.n >= 20.0 && var > 100.0 {
-            Some((mb, (self.sb / self.n - ms * mb) / var, ms))
+            Some((mv, (self.sv / self.n - ms * mv) / var, ms))
         } else {
-            Some((mb, 0.0, ms))
+            Some((mv, 0.0, ms))
         }
+    }
+
+    /// Adds a sample; returns the factor old sums were scaled by (for companions).
+    fn add(&mut self, s_mm: f64, v: f64) -> f64 {
+        let mut k = 1.0;
+        if self.n >= Self::MAX_N {
+            k = (Self::MAX_N - 1.0) / self.n;
+            self.n *= k;
+            self.s *= k;
+            self.ss *= k;
+            self.v *= k;
+            self.sv *= k;
+        }
+        self.n += 1.0;
+        self.s += s_mm;
+        self.ss += s_mm * s_mm;
+        self.v += v;
+        self.sv += s_mm * v;
+        k
+    }
+}
+
+impl ScaleFit {
+    fn coeffs(&self) -> Option<(f64, f64, f64)> {
+        self.line.coeffs()
     }
 
     /// Adds one frame's scale error `b` at `s`; refuses outliers.
@@ -176,19 +210,7 @@ impl ScaleFit {
                 return false;
             }
         }
-        if self.n >= Self::MAX_N {
-            let k = (Self::MAX_N - 1.0) / self.n;
-            self.n *= k;
-            self.s *= k;
-            self.ss *= k;
-            self.b *= k;
-            self.sb *= k;
-        }
-        self.n += 1.0;
-        self.s += s_mm;
-        self.ss += s_mm * s_mm;
-        self.b += b;
-        self.sb += s_mm * b;
+        self.line.add(s_mm, b);
         true
     }
 
@@ -212,39 +234,29 @@ impl ScaleFit {
 /// noise averages out while the marker travels, and no single frame's noise reaches the phase.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CentreFit {
-    n: f64,
-    s: f64,
-    ss: f64,
-    e: f64,
-    se: f64,
+    line: LineFit,
     ratio: f64,
 }
 
 impl CentreFit {
-    /// Weight kept for old samples once this many are in: slow drift (thermal, sag) is followed.
-    const MAX_N: f64 = 5000.0;
-
     /// The fitted offset at `s` and the radius ratio; (0, 1) before any sample.
     pub fn at(&self, s_mm: f64) -> (f64, f64) {
-        if self.n < 1.0 {
+        if self.line.n < 1.0 {
             return (0.0, 1.0);
         }
-        let ratio = self.ratio / self.n;
-        let ms = self.s / self.n;
-        let var = self.ss / self.n - ms * ms;
-        let me = self.e / self.n;
-        // A slope needs samples spread along the rod (10 mm std) and enough of them.
-        if self.n >= 20.0 && var > 100.0 {
-            let b = (self.se / self.n - ms * me) / var;
-            (me + b * (s_mm - ms), ratio)
-        } else {
-            (me, ratio)
+        let ratio = self.ratio / self.line.n;
+        if self.line.n < 5.0 {
+            return (self.line.v / self.line.n, ratio);
+        }
+        match self.line.coeffs() {
+            Some((me, b, ms)) => (me + b * (s_mm - ms), ratio),
+            None => (self.line.v / self.line.n, ratio),
         }
     }
 
     /// Adds one silhouette sample; refuses one far from the current fit (hands, figures).
     pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64) -> bool {
-        if self.n >= 5.0 {
+        if self.line.n >= 5.0 {
             let (e, r) = self.at(s_mm);
             if (offset_px - e).abs() > 0.75 || (ratio - r).abs() > 0.1 {
                 return false;
@@ -252,27 +264,14 @@ impl CentreFit {
         } else if offset_px.abs() > 3.0 || (ratio - 1.0).abs() > 0.3 {
             return false;
         }
-        if self.n >= Self::MAX_N {
-            let k = (Self::MAX_N - 1.0) / self.n;
-            self.n *= k;
-            self.s *= k;
-            self.ss *= k;
-            self.e *= k;
-            self.se *= k;
-            self.ratio *= k;
-        }
-        self.n += 1.0;
-        self.s += s_mm;
-        self.ss += s_mm * s_mm;
-        self.e += offset_px;
-        self.se += s_mm * offset_px;
-        self.ratio += ratio;
+        let k = self.line.add(s_mm, offset_px);
+        self.ratio = self.ratio * k + ratio;
         true
     }
 
     /// Number of samples in the fit.
     pub fn samples(&self) -> f64 {
-        self.n
+        self.line.n
     }
 }
 
