@@ -317,11 +317,11 @@ impl<'a> FrameView<'a> {
                     LumaKind::Bayer => {
                         let gx = x - 0.5;
                         let gy = y - 0.5;
-                        let i0 = gx.floor();
-                        let j0 = gy.floor();
-                        let fx = gx - i0;
-                        let fy = gy - j0;
-                        let base = j0 as usize * self.stride + i0 as usize;
+                        // Positive here, so truncation is floor (and no libm call).
+                        let (i0, j0) = (gx as usize, gy as usize);
+                        let fx = gx - i0 as f32;
+                        let fy = gy - j0 as f32;
+                        let base = j0 * self.stride + i0;
                         let cx = [(1.0 - fx) * 0.5, 0.5, fx * 0.5];
                         let cy = [(1.0 - fy) * 0.5, 0.5, fy * 0.5];
                         let mut acc = 0.0f32;
@@ -336,11 +336,10 @@ impl<'a> FrameView<'a> {
                         return acc;
                     }
                     LumaKind::Mono => {
-                        let i0 = x.floor();
-                        let j0 = y.floor();
-                        let fx = x - i0;
-                        let fy = y - j0;
-                        let base = j0 as usize * self.stride + i0 as usize;
+                        let (i0, j0) = (x as usize, y as usize);
+                        let fx = x - i0 as f32;
+                        let fy = y - j0 as f32;
+                        let base = j0 * self.stride + i0;
                         let r0 = &self.data[base..base + 2];
                         let r1 = &self.data[base + self.stride..base + self.stride + 2];
                         let top = r0[0] as f32 * (1.0 - fx) + r0[1] as f32 * fx;

@@ -97,6 +97,10 @@ struct EnhancedState {
     coarse_step: f64,
     /// Nearest luma node per coarse sample; `None` outside the frame.
     coarse_nodes: Vec<Option<(isize, isize)>>,
+    /// `coarse_nodes` on the luma grid of frames whose node offset is `coarse_grid_offset`
+    /// (converted on the first frame, again only if the pixel format changes).
+    coarse_grid: Vec<Option<(isize, isize)>>,
+    coarse_grid_offset: f64,
     coarse: Vec<f32>,
     prefix: Vec<f64>,
     prefix2: Vec<f64>,
@@ -110,8 +114,9 @@ struct EnhancedState {
     /// The mm scale along the rod learnt from the barcode's length over all frames.
     scale: ScaleFit,
     profile: Vec<f32>,
-    /// Phase sample angles (rad from the facing line) and their sin/cos of `f delta`.
-    phase_delta: Vec<(f64, f64, f64, f64)>,
+    /// Phase sample angles `delta` (rad from the facing line): (delta, weight cos delta,
+    /// sin delta).
+    phase_delta: Vec<(f64, f64, f64)>,
     /// Per radius correction `eps`: (weight, cos, sin) of `cycles * asin(sin(delta) / (1 + eps))`.
     eps_tables: Vec<Vec<(f64, f64, f64)>>,
     /// Matched-filter energy per `eps`, accumulated over frames.
@@ -390,11 +395,10 @@ impl RodTracker {
         let periods = ((140f64.to_radians() / period).floor() as usize).max(1);
         let half = periods as f64 * period * 0.5;
         let count = periods * PHASE_SAMPLES_PER_PERIOD;
-        let phase_delta: Vec<(f64, f64, f64, f64)> = (0..count)
+        let phase_delta: Vec<(f64, f64, f64)> = (0..count)
             .map(|j| {
                 let d = -half + (j as f64 + 0.5) * (2.0 * half / count as f64);
-                let w = d.cos();
-                (d, w, (cycles * d).sin(), (cycles * d).cos())
+                (d, d.cos(), d.sin())
             })
             .collect();
         let eps_values: Vec<f64> = (-8..=12).map(|i| i as f64 * 0.01).collect();
@@ -403,7 +407,7 @@ impl RodTracker {
             .map(|eps| {
                 phase_delta
                     .iter()
-                    .map(|&(d, w, _, _): &(f64, f64, f64, f64)| {
+                    .map(|&(d, w, _): &(f64, f64, f64)| {
                         let t = (d.sin() / (1.0 + eps)).clamp(-1.0, 1.0).asin();
                         (w, (cycles * t).cos(), (cycles * t).sin())
                     })
@@ -456,6 +460,8 @@ impl RodTracker {
             prefix2: vec![0.0; n + 1],
             corr: vec![0.0; n_cand],
             valid,
+            coarse_grid: coarse_nodes.clone(),
+            coarse_grid_offset: f64::NAN,
             coarse_nodes,
             cells,
             cell_len,
@@ -660,10 +666,16 @@ impl RodTracker {
         st.edge_offsets.clear();
         for &(u_e, rising) in &st.edges {
             let s_e = pos0 + u_e;
-            for (i, v) in st.profile.iter_mut().enumerate() {
-                let p = st.knots.at(s_e - half + i as f64 * dstep);
-                *v = frame.luma_bilinear(p.x as f32, p.y as f32);
-            }
+            // The profile is read lazily: its two ends, then outward from the middle until the
+            // crossing (usually near the middle, as the coarse peak is within a quarter cell).
+            let knots = &st.knots;
+            let sample = |i: usize| {
+                let p = knots.at(s_e - half + i as f64 * dstep);
+                frame.luma_bilinear(p.x as f32, p.y as f32)
+            };
+            st.profile.fill(f32::NAN);
+            st.profile[0] = sample(0);
+            st.profile[n_prof - 1] = sample(n_prof - 1);
             let level = 0.5 * (st.profile[0] + st.profile[n_prof - 1]);
             let local = (st.profile[0] - st.profile[n_prof - 1]).abs() as f64;
             if local < 0.35 * contrast {
@@ -677,6 +689,11 @@ impl RodTracker {
                 for i in [mid + r, mid - r - 1] {
                     if i + 1 >= n_prof {
                         continue;
+                    }
+                    for q in [i, i + 1] {
+                        if st.profile[q].is_nan() {
+                            st.profile[q] = sample(q);
+                        }
                     }
                     let a = (level - st.profile[i]) * sign;
                     let b = (level - st.profile[i + 1]) * sign;
@@ -794,8 +811,8 @@ impl RodTracker {
             for &u in rows_u.iter() {
                 let lp = st.knots.at(position + u);
                 let (e, r) = (centre(u), lp.radius_px * radius_ratio);
-                for (o, &(d, ..)) in out.iter_mut().zip(&st.phase_delta) {
-                    let (x, y) = lp.offset(0.0, e + r * d.sin());
+                for (o, &(_, _, sin_d)) in out.iter_mut().zip(&st.phase_delta) {
+                    let (x, y) = lp.offset(0.0, e + r * sin_d);
                     *o += frame.luma_bilinear(x as f32, y as f32) as f64;
                 }
             }
@@ -828,8 +845,8 @@ impl RodTracker {
             let u = c0 + r * m.bit_space_mm();
             let lp: LinePoint = st.knots.at(position + u);
             let (e, rad) = (centre(u), lp.radius_px * radius_ratio);
-            for (j, &(d, w, ..)) in st.phase_delta.iter().enumerate() {
-                let (x, y) = lp.offset(0.0, e + rad * d.sin());
+            for (j, &(_, w, sin_d)) in st.phase_delta.iter().enumerate() {
+                let (x, y) = lp.offset(0.0, e + rad * sin_d);
                 let raw = frame.luma_bilinear(x as f32, y as f32) as f64;
                 // Normalised to the print's own white (1) and black (0) at this angle.
                 let v = (raw - st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
@@ -942,13 +959,20 @@ fn coarse_search(
 ) -> Option<(usize, f64, f64)> {
     let kernel_n = st.cells.len() * st.cell_len;
     let end = hi + kernel_n;
-    for idx in lo..end {
-        st.coarse[idx] = match st.coarse_nodes[idx] {
-            Some((i, j)) => {
-                let i = (i as f64 - node_off).round() as isize;
-                let j = (j as f64 - node_off).round() as isize;
-                frame.luma_node(i, j)
-            }
+    if st.coarse_grid_offset != node_off {
+        for (g, n) in st.coarse_grid.iter_mut().zip(&st.coarse_nodes) {
+            *g = n.map(|(i, j)| {
+                (
+                    (i as f64 - node_off).round() as isize,
+                    (j as f64 - node_off).round() as isize,
+                )
+            });
+        }
+        st.coarse_grid_offset = node_off;
+    }
+    for (v, g) in st.coarse[lo..end].iter_mut().zip(&st.coarse_grid[lo..end]) {
+        *v = match *g {
+            Some((i, j)) => frame.luma_node(i, j),
             None => 0.0,
         };
     }
