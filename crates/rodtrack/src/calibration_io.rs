@@ -1,15 +1,61 @@
 //! Reading calibration inputs and calibration files, with errors that name the file.
 
-use anyhow::{bail, Context, Result};
-use rodtrack_core::calib::{CalibrationFile, CalibrationInputs};
+use anyhow::{anyhow, bail, Context, Result};
+use rodtrack_core::calib::inputs::OPENCV_MODEL_FILE_KEY;
+use rodtrack_core::calib::opencv::parse_opencv_model;
+use rodtrack_core::calib::{CalibrationFile, CalibrationInputs, OpencvModel};
 use std::path::Path;
 
-/// Reads and parses a calibration-inputs JSON file.
+/// Reads and parses a calibration-inputs JSON file. An `opencv_model_file` entry (an OpenCV
+/// FileStorage YAML or JSON file, relative to the inputs file) is read into
+/// `opencv_model_optional`.
 pub fn read_inputs(path: &Path) -> Result<CalibrationInputs> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read calibration inputs {}", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("calibration inputs {} are malformed", path.display()))
+    let malformed = || format!("calibration inputs {} are malformed", path.display());
+    // Parse straight into the inputs (errors with line and column) unless the file names an
+    // OpenCV model file.
+    let mut value: serde_json::Value = serde_json::from_str(&text).with_context(malformed)?;
+    let Some(file) = value
+        .as_object_mut()
+        .and_then(|o| o.remove(OPENCV_MODEL_FILE_KEY))
+    else {
+        return serde_json::from_str(&text).with_context(malformed);
+    };
+    let field = |reason: String| {
+        anyhow!(
+            "calibration inputs {}: field `{OPENCV_MODEL_FILE_KEY}`: {reason}",
+            path.display()
+        )
+    };
+    let Some(file) = file.as_str() else {
+        return Err(field(format!("must be a file name, got {file}")));
+    };
+    if value
+        .get("opencv_model_optional")
+        .is_some_and(|v| !v.is_null())
+    {
+        return Err(field(
+            "give either `opencv_model_file` or `opencv_model_optional`, not both".into(),
+        ));
+    }
+    let model_path = path.parent().unwrap_or(Path::new(".")).join(file);
+    let model = read_opencv_model(&model_path).map_err(|e| field(format!("{e:#}")))?;
+    if let Some(o) = value.as_object_mut() {
+        o.insert(
+            "opencv_model_optional".into(),
+            serde_json::to_value(&model).context("cannot convert the OpenCV model")?,
+        );
+    }
+    serde_json::from_value(value).with_context(malformed)
+}
+
+/// Reads an OpenCV camera model from a `cv::FileStorage` file (YAML or JSON, as OpenCV writes
+/// it after `calibrateCamera`); errors name the file and the field.
+pub fn read_opencv_model(path: &Path) -> Result<OpencvModel> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the OpenCV camera model {}", path.display()))?;
+    parse_opencv_model(&text).map_err(|e| anyhow!("OpenCV camera model {}: {e}", path.display()))
 }
 
 /// Reads, parses and validates a calibration file (TOML).

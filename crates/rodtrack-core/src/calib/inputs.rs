@@ -1,8 +1,20 @@
 //! The calibration-inputs file (SPEC section 5): what an operator, the web console or the
 //! simulator produces, one JSON file per camera.
+//!
+//! The OpenCV camera model may be given inline (`opencv_model_optional`, see [`OpencvModel`])
+//! or as the file OpenCV's `cv::FileStorage` wrote after `calibrateCamera`: the key
+//! [`OPENCV_MODEL_FILE_KEY`] (`"opencv_model_file": "cam0_intrinsics.yml"`, relative to the
+//! inputs file, YAML or JSON; see [`super::opencv`]). The loader that reads inputs from disk
+//! resolves that key and puts the model it reads into `opencv_model_optional`; giving both is
+//! an error.
 
 use crate::marker::MarkerSpec;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// Key of the calibration inputs that names an OpenCV FileStorage file (YAML or JSON) holding
+/// the camera model, relative to the inputs file. Read by the file loader, never stored in
+/// [`CalibrationInputs`]: the model read from it becomes `opencv_model_optional`.
+pub const OPENCV_MODEL_FILE_KEY: &str = "opencv_model_file";
 
 /// Image size in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -15,13 +27,25 @@ pub struct ImageSize {
 }
 
 /// An OpenCV camera model as in the calibration inputs.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+///
+/// Written as `{"camera_matrix": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "dist_coeffs": [k1, k2,
+/// p1, p2, k3]}`. Read from that, and also from the forms `cv::FileStorage` writes: the keys
+/// `cameraMatrix`/`K` and `distortion_coefficients`/`distCoeffs`/`D`, matrices as
+/// `{"type_id": "opencv-matrix", "rows": 3, "cols": 3, "dt": "d", "data": [...]}`, 4, 5, 8, 12
+/// or 14 coefficients of which those after `k3` must be zero. Other keys are refused.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OpencvModel {
     /// 3x3 camera matrix.
     pub camera_matrix: [[f64; 3]; 3],
-    /// Distortion coefficients `(k1, k2, p1, p2[, k3])`.
+    /// Distortion coefficients `(k1, k2, p1, p2[, k3[, zeros]])`.
     pub dist_coeffs: Vec<f64>,
+}
+
+impl<'de> Deserialize<'de> for OpencvModel {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let node = super::opencv::Node::deserialize(d)?;
+        super::opencv::model_from_node(&node, true).map_err(serde::de::Error::custom)
+    }
 }
 
 /// Where the reference frames are.

@@ -4,6 +4,7 @@ pub mod compute;
 pub mod file;
 pub mod find;
 pub mod inputs;
+pub mod opencv;
 
 pub use compute::{calibrate_rod, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{
