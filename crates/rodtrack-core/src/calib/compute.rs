@@ -109,11 +109,6 @@ pub fn calibrate_rod(
         let b = lams.iter().cloned().fold(f64::MIN, f64::max);
         (b - a) / curve.lambda_per_px(a)
     };
-    if spread_px < 0.3 * frame.height().min(frame.width()) as f64 {
-        warnings.push(format!(
-            "path points span only {spread_px:.0} px: spread them along the whole path"
-        ));
-    }
     if path_max > 3.0 {
         warnings.push(format!(
             "a path point lies {path_max:.1} px off the fitted path: check the clicks"
@@ -233,6 +228,17 @@ pub fn calibrate_rod(
     // lambda = l0 + g u (g signed: carries the direction).
     let (l0, g, edge_rms_lam) = fit_affine(&edge_pts);
     let edge_rms_mm = edge_rms_lam / g.abs();
+    // The path points should cover most of what the rod's travel spans in the image (as much
+    // of it as the image shows).
+    let travel_px = (inputs.travel_mm[1] - inputs.travel_mm[0]) * g.abs() / curve.lambda_per_px(l0);
+    let expected_px = travel_px.min((hi - lo) / curve.lambda_per_px(l0));
+    if spread_px < 0.5 * expected_px {
+        warnings.push(format!(
+            "path points span only {spread_px:.0} px, {:.0} % of the {expected_px:.0} px the \
+             rod's travel covers in the image: spread them along the whole path",
+            100.0 * spread_px / expected_px
+        ));
+    }
     let scale_ratio =
         (g.abs() / curve.lambda_per_px(l0)) / (marker.barcode_len_mm() * 0.0 + 1.0) / px_per_mm0;
     let s_ref = inputs.reference.position_mm;
