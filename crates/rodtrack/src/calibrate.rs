@@ -276,8 +276,13 @@ pub fn print_report(cam: &CameraCalibration) {
 const DEFAULT_ANALYSED_FRAMES: u64 = 150;
 /// Smallest barcode correlation accepted as a marker.
 const MIN_NCC: f64 = 0.7;
-/// Below this correlation a reference marker is doubtful.
+/// Below this correlation a reference marker is doubtful...
 const DOUBTFUL_NCC: f64 = 0.8;
+/// ... and so it is when its barcode edges lie this far (RMS, mm) from their fit (0.01-0.02 mm
+/// on a sharp frame)...
+const DOUBTFUL_EDGE_MM: f64 = 0.1;
+/// ... or its Gray code and phase disagree by this many steps (up to 0.5 when they agree).
+const DOUBTFUL_CODE_PHASE: f64 = 0.75;
 /// Detections closer than this along the rod (px) are one path point (a rod at rest).
 const MERGE_PX: f64 = 1.5;
 /// Margin added to a travel measured from the sweep, mm.
@@ -959,11 +964,27 @@ fn auto_camera(
         match calibrate_rod(&rod_inputs, &view, intrinsics.as_ref()) {
             Ok(cal) => {
                 let s = &cal.residuals;
-                if s.reference_ncc < DOUBTFUL_NCC || s.reference_code_phase_steps > 0.5 {
+                let mut doubts = Vec::new();
+                if s.reference_ncc < DOUBTFUL_NCC {
+                    doubts.push(format!("barcode correlation {:.2}", s.reference_ncc));
+                }
+                if s.edge_rms_mm > DOUBTFUL_EDGE_MM {
+                    doubts.push(format!(
+                        "barcode edges {:.2} mm (RMS) off their fit",
+                        s.edge_rms_mm
+                    ));
+                }
+                if s.reference_code_phase_steps > DOUBTFUL_CODE_PHASE {
+                    doubts.push(format!(
+                        "Gray code and phase {:.2} steps apart",
+                        s.reference_code_phase_steps
+                    ));
+                }
+                if !doubts.is_empty() {
                     warnings.push(format!(
-                        "rod {id}: doubtful reference (correlation {:.2}, Gray code and phase \
-                         {:.2} steps apart): was the rod at rest at its reference pose?",
-                        s.reference_ncc, s.reference_code_phase_steps
+                        "rod {id}: doubtful reference ({}): was the rod at rest at its reference \
+                         pose, its marker clean and well lit?",
+                        doubts.join(", ")
                     ));
                 }
                 if s.path_rms_px > 0.5 {

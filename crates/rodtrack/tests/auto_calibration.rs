@@ -69,10 +69,15 @@ fn rodtrack(args: &[&str]) -> Output {
     out
 }
 
+/// Runs rodtrack, which must succeed; returns what it printed (stdout, then stderr).
 fn ok(args: &[&str]) -> String {
     let out = rodtrack(args);
     assert!(out.status.success(), "rodtrack {} failed", args.join(" "));
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
 }
 
 fn fresh_dir(name: &str) -> PathBuf {
@@ -232,6 +237,10 @@ fn calibrate_auto_end_to_end() {
     ]);
     eprintln!("calibrate --auto in {:.1} s", t1.elapsed().as_secs_f64());
     assert!(out.contains("rods along image rows"), "{out}");
+    assert!(
+        !out.contains("doubtful"),
+        "a sharp reference frame is not doubtful"
+    );
     // Every rod of both cameras is calibrated, with the camera model.
     let cal: toml::Value =
         toml::from_str(&std::fs::read_to_string(dir.join("auto.toml")).unwrap()).unwrap();
@@ -343,9 +352,43 @@ fn calibrate_auto_end_to_end() {
     opencv_model_files_in_the_inputs(&dir);
 }
 
-/// A sweep cut short warns for every rod; bad arguments fail with clear messages.
+/// A sweep cut short, or a noisy reference frame, warns for every rod; bad arguments fail
+/// with clear messages.
 fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
     let d = |p: &str| dir.join(p).display().to_string();
+    // The reference frame with strong noise (sigma 60 DN): every rod's reference is doubtful.
+    let noisy = dir.join("noisy");
+    std::fs::create_dir_all(&noisy).unwrap();
+    for e in std::fs::read_dir(dir.join("sweep/cam0")).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, noisy.join(p.file_name().unwrap())).unwrap();
+    }
+    let mut frame = image::open(noisy.join("000000.png")).unwrap().into_luma8();
+    let mut state = 12345u64;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    for px in frame.pixels_mut() {
+        let g = (-2.0 * uniform().ln()).sqrt() * (std::f64::consts::TAU * uniform()).cos();
+        px.0[0] = (px.0[0] as f64 + 60.0 * g).round().clamp(0.0, 255.0) as u8;
+    }
+    frame.save(noisy.join("000000.png")).unwrap();
+    let out = ok(&[
+        "calibrate",
+        "--auto",
+        "--input",
+        &d("noisy"),
+        "--out",
+        &d("noisy.toml"),
+    ]);
+    assert_eq!(
+        out.matches("doubtful reference").count(),
+        7,
+        "one warning per rod: {out}"
+    );
     // The first 10 frames (1.8 s): every rod covered a third of its travel or less.
     let out = ok(&[
         "calibrate",
