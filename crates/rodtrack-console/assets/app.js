@@ -88,11 +88,26 @@ function camPanel(cam, w, h) {
   return p;
 }
 
+// Live previews narrower than this (decimated copies) are drawn enlarged, so that the
+// overlays stay sharp.
+const LIVE_DRAW_WIDTH = 720;
+let liveScratch = null;
+
 function showFrame(f) {
   const h = f.header;
-  const p = camPanel(h.camera, h.pw, h.ph);
-  p.ctx.putImageData(f.img, 0, 0);
-  const s = 1 / h.factor;
+  const up = Math.max(1, Math.round(LIVE_DRAW_WIDTH / h.pw));
+  const p = camPanel(h.camera, h.pw * up, h.ph * up);
+  if (up === 1) {
+    p.ctx.putImageData(f.img, 0, 0);
+  } else {
+    if (!liveScratch) liveScratch = document.createElement('canvas');
+    liveScratch.width = h.pw; liveScratch.height = h.ph;
+    liveScratch.getContext('2d').putImageData(f.img, 0, 0);
+    p.ctx.imageSmoothingEnabled = true;
+    p.ctx.drawImage(liveScratch, 0, 0, h.pw * up, h.ph * up);
+  }
+  p.header = h;
+  const s = up / h.factor;
   const X = (q) => (q[0] + 0.5) * s, Y = (q) => (q[1] + 0.5) * s;
   for (const o of h.overlays) drawOverlay(p.ctx, o, X, Y);
   const ok = h.overlays.filter((o) => o.status === 'ok').length;

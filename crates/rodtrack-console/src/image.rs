@@ -57,6 +57,64 @@ impl OwnedFrame {
         self.timestamp_s = timestamp_s;
     }
 
+    /// Copies every `d`-th pixel of every `d`-th row of a view (for Bayer formats, every `d`-th
+    /// 2x2 block of every `d`-th row of blocks, so that the copy is a Bayer frame of the same
+    /// pattern): the live view's cheap copy, `d x d` times less data than [`OwnedFrame::copy_from`]
+    /// and about that much less memory traffic (the skipped rows are never read). Kept pixel
+    /// `(x, y)` of the copy is pixel `(x * d, y * d)` of the frame (blocks: block `(i, j)` is
+    /// block `(i * d, j * d)`); `d <= 1` copies everything. Reuses the allocation.
+    pub fn copy_decimated(&mut self, frame: &FrameView, d: usize, frame_id: u64, timestamp_s: f64) {
+        if d <= 1 {
+            self.copy_from(frame, frame_id, timestamp_s);
+            return;
+        }
+        let format = frame.format();
+        let bpp = format.bytes_per_pixel();
+        // Pixels kept together along each axis.
+        let unit = if format.luma_kind() == LumaKind::Bayer {
+            2
+        } else {
+            1
+        };
+        let (w, h) = (frame.width(), frame.height());
+        let out_w = (w / unit).div_ceil(d) * unit;
+        let out_h = (h / unit).div_ceil(d) * unit;
+        let (row_in, row_out) = (w * bpp, out_w * bpp);
+        let (stride, src) = (frame.stride(), frame.data());
+        // Every byte is overwritten: no clearing.
+        self.data.resize(row_out * out_h, 0);
+        let step = d * unit * bpp;
+        for (oy, out) in self.data.chunks_exact_mut(row_out.max(1)).enumerate() {
+            let y = (oy / unit) * d * unit + oy % unit;
+            let Some(row) = src.get(y * stride..y * stride + row_in) else {
+                break;
+            };
+            match (unit * bpp, d) {
+                (1, 2) => decimate_row::<1, 2>(row, out),
+                (2, 2) => decimate_row::<2, 4>(row, out),
+                (3, 2) => decimate_row::<3, 6>(row, out),
+                (4, 2) => decimate_row::<4, 8>(row, out),
+                (1, _) => decimate_row_by::<1>(row, out, step),
+                (2, _) => decimate_row_by::<2>(row, out, step),
+                (3, _) => decimate_row_by::<3>(row, out, step),
+                (4, _) => decimate_row_by::<4>(row, out, step),
+                (u, _) => {
+                    for (s, o) in row.chunks(step).zip(out.chunks_exact_mut(u)) {
+                        if let Some(s) = s.get(..u) {
+                            o.copy_from_slice(s);
+                        }
+                    }
+                }
+            }
+        }
+        self.stride = row_out;
+        self.width = out_w;
+        self.height = out_h;
+        self.format = format;
+        self.frame_id = frame_id;
+        self.timestamp_s = timestamp_s;
+    }
+
     /// Takes the caller's frame buffer without copying: swaps it with this frame's buffer
     /// (which the caller gets back, resized to the same length, to fill with a later frame).
     /// The buffer is checked first; when it does not hold the frame described, nothing changes.
@@ -126,6 +184,29 @@ impl OwnedFrame {
     /// Row stride, bytes.
     pub fn stride(&self) -> usize {
         self.stride
+    }
+}
+
+/// Copies the first `U` bytes of every `S` bytes of `src` into `out` (`U` and `S` constant,
+/// so that the compiler vectorises the common decimation by 2).
+fn decimate_row<const U: usize, const S: usize>(src: &[u8], out: &mut [u8]) {
+    let mut srcs = src.chunks_exact(S);
+    let mut outs = out.chunks_exact_mut(U);
+    for (s, o) in (&mut srcs).zip(&mut outs) {
+        o.copy_from_slice(&s[..U]);
+    }
+    // A last unit that starts in the row's incomplete last step.
+    if let (Some(o), Some(s)) = (outs.next(), srcs.remainder().get(..U)) {
+        o.copy_from_slice(s);
+    }
+}
+
+/// [`decimate_row`] for any step.
+fn decimate_row_by<const U: usize>(src: &[u8], out: &mut [u8], step: usize) {
+    for (s, o) in src.chunks(step).zip(out.chunks_exact_mut(U)) {
+        if let Some(s) = s.get(..U) {
+            o.copy_from_slice(s);
+        }
     }
 }
 
@@ -288,6 +369,60 @@ mod tests {
         let owned = OwnedFrame::from_view(&f, 5, 0.5);
         assert_eq!(owned.data().len(), w * h);
         assert_eq!(owned.view().unwrap().luma_node(2, 2), 110.0);
+    }
+
+    #[test]
+    fn decimated_copies_keep_every_dth_pixel_or_bayer_block() {
+        // Pixel (x, y) holds x + 10 y (mod 256), 2 bytes per pixel for the 16-bit formats.
+        let (w, h) = (11, 9);
+        for format in PixelFormat::ALL {
+            let bpp = format.bytes_per_pixel();
+            let stride = w * bpp + 3;
+            let mut data = vec![0u8; stride * h];
+            for y in 0..h {
+                for x in 0..w {
+                    for b in 0..bpp {
+                        data[y * stride + x * bpp + b] = (x + 10 * y + 100 * b) as u8;
+                    }
+                }
+            }
+            let f = FrameView::new(&data, w, h, stride, format).unwrap();
+            let bayer = format.luma_kind() == LumaKind::Bayer;
+            for d in 1..5 {
+                let mut o = OwnedFrame::default();
+                o.copy_decimated(&f, d, 3, 0.25);
+                // Source coordinate of kept pixel i along an axis.
+                let src = |i: usize| {
+                    if bayer && d > 1 {
+                        (i / 2) * 2 * d + i % 2
+                    } else {
+                        i * d
+                    }
+                };
+                let (ew, eh) = if bayer && d > 1 {
+                    ((w / 2).div_ceil(d) * 2, (h / 2).div_ceil(d) * 2)
+                } else {
+                    (w.div_ceil(d), h.div_ceil(d))
+                };
+                assert_eq!((o.width(), o.height()), (ew, eh), "{format:?} d {d}");
+                assert_eq!(
+                    (o.frame_id(), o.timestamp_s(), o.format()),
+                    (3, 0.25, format)
+                );
+                assert_eq!(o.data().len(), ew * eh * bpp);
+                for y in 0..eh {
+                    for x in 0..ew {
+                        for b in 0..bpp {
+                            assert_eq!(
+                                o.data()[y * o.stride() + x * bpp + b],
+                                (src(x) + 10 * src(y) + 100 * b) as u8,
+                                "{format:?} d {d} ({x}, {y})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -4,13 +4,21 @@
 //! [`rodtrack_core::calib::calibrate_rod`], see the residuals, save the TOML file).
 //!
 //! # Never blocking the tracking
-//! The tracking side only ever *publishes*: [`ConsoleHandle::publish_frame`] copies a raw frame
-//! into a latest-value slot a few times per second, and only while a browser is connected
-//! (`try_lock`: when the console is reading the slot the frame is skipped);
-//! [`ConsoleHandle::publish_rows`] appends to a bounded ring buffer (oldest rows are dropped);
-//! [`ConsoleHandle::publish_stats`] replaces the latest counters. The console's own thread
-//! (a one-worker tokio runtime serving axum) downscales, encodes and sends at its own pace.
-//! The time spent inside the publish calls is measured ([`ConsoleHandle::overhead`]).
+//! The tracking side only ever *publishes*, and gives a live frame only when the console asks
+//! for one: while a browser is connected, the console sets a per-camera "want" flag a few times
+//! per second, and every other frame costs the tracking side two atomic loads
+//! ([`ConsoleHandle::wants_frame`]; no clock, no lock). A wanted frame is either copied,
+//! decimated to at most [`LIVE_COPY_MAX_WIDTH`] pixels across
+//! ([`ConsoleHandle::publish_frame`], [`LIVE_COPY_FPS`] per camera), or swapped in without a copy
+//! ([`ConsoleHandle::publish_frame_buffer`], [`LIVE_FPS`] per camera), into a latest-value slot
+//! (`try_lock`: when the console is reading the slot the frame is skipped).
+//! [`ConsoleHandle::publish_rows`] appends compact rows to a bounded, preallocated ring (oldest
+//! rows are dropped; the console copies rows out a few thousand per lock and formats them
+//! outside it); [`ConsoleHandle::publish_stats`] replaces the latest counters (`try_lock`). The
+//! console's own thread (a one-worker tokio runtime serving axum) downscales, encodes and sends
+//! at its own pace. The time spent inside the publish calls is measured
+//! ([`ConsoleHandle::overhead`]); their share of the tracking time is the `overhead` bench
+//! (`cargo bench -p rodtrack-console --bench overhead`).
 //!
 //! # API
 //! - [`Console::start`]`(addr, Option<CalibrationContext>) -> Result<ConsoleHandle>`
@@ -19,7 +27,8 @@
 //!   &FrameView, frame_id, timestamp_s, &[RodOverlay])`, [`overlays_for`]`(&RodTracker,
 //!   &RodResult)`.
 //! - [`ConsoleHandle::publish_frame_buffer`]: the same for an owned buffer, swapped instead of
-//!   copied (zero copy; the demo uses it).
+//!   copied (zero copy, full resolution; `rodtrack demo` and `rodtrack console --demo` use it,
+//!   `rodtrack track` uses the decimated copy: its frames are the runtime's).
 //! - [`ConsoleHandle::publish_rows`]`(&[Measurement])`, [`ConsoleHandle::publish_stats`].
 //! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions
 //!   (see [`server`]).
@@ -41,20 +50,39 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, TryLockError};
 use std::time::{Duration, Instant};
 
 /// The default address: loopback only.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8620";
 /// Cameras the console can show (indices `0..MAX_CAMERAS`).
 pub const MAX_CAMERAS: usize = 16;
-/// Rows kept for the plots (about 20 s of 2 cameras x 8 rods + fused at 200 fps).
+/// Rows kept for the plots (about 13 s of 2 cameras x 8 rods + fused at 200 fps).
 pub const ROW_CAPACITY: usize = 1 << 16;
-/// Live frames per second per camera sent to the browser. With
-/// [`ConsoleHandle::publish_frame_buffer`] a live frame costs the tracking thread a buffer swap;
-/// with [`ConsoleHandle::publish_frame`] one frame copy (0.1 to 0.25 ms for 1440x1080, about
-/// 2 % of the tracking time at 200 fps); measured in `tests/overhead.rs`.
+/// Live frames per second per camera sent to the browser when the tracking side gives them with
+/// [`ConsoleHandle::publish_frame_buffer`] (a live frame then costs the tracking thread a buffer
+/// swap). Measured by `cargo bench -p rodtrack-console --bench overhead`.
 pub const LIVE_FPS: f64 = 3.0;
+/// Live frames per second per camera when the tracking side gives them with
+/// [`ConsoleHandle::publish_frame`]: each costs the tracking thread a decimated copy (see
+/// [`LIVE_COPY_MAX_WIDTH`]), so they come less often.
+pub const LIVE_COPY_FPS: f64 = 2.0;
+/// Widest live frame [`ConsoleHandle::publish_frame`] copies, px: wider frames are decimated
+/// (every `d`-th pixel of every `d`-th row; for Bayer frames every `d`-th 2x2 block, so a
+/// 1440x1080 Bayer camera is copied as 720x540 Bayer, a quarter of its bytes, and shown as a
+/// 360x270 colour preview; the full copy took 2.5 times as long). Frozen frames (calibration)
+/// are always copied whole.
+pub const LIVE_COPY_MAX_WIDTH: usize = 720;
+
+/// The decimation [`ConsoleHandle::publish_frame`] applies to a live frame `width` px wide.
+pub fn live_decimation(width: usize, format: rodtrack_core::PixelFormat) -> usize {
+    if format.luma_kind() == rodtrack_core::LumaKind::Bayer {
+        // Whole 2x2 blocks are kept.
+        (width / 2).div_ceil(LIVE_COPY_MAX_WIDTH / 2).max(1)
+    } else {
+        width.div_ceil(LIVE_COPY_MAX_WIDTH).max(1)
+    }
+}
 
 /// The pipeline's counters, as the tracking side sees them.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -74,7 +102,8 @@ pub struct PipelineStats {
 /// Time spent inside the publish calls.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct PublishOverhead {
-    /// Number of publish calls.
+    /// Publish calls that did something (frame copies or swaps, rows, counters); frames offered
+    /// when no live frame is due return after two atomic loads and are only counted per camera.
     pub calls: u64,
     /// Total time inside them, ns.
     pub total_ns: u64,
@@ -101,16 +130,80 @@ pub(crate) struct LiveFrame {
 pub(crate) struct CameraSlot {
     pub seen: AtomicBool,
     pub frames: AtomicU64,
-    pub last_copy_ns: AtomicU64,
+    /// Set by the console when it wants a new live frame, cleared by the tracking side when it
+    /// gives one: the tracking side's whole check is two atomic loads (this and `freeze`), no
+    /// clock.
+    pub want: AtomicBool,
+    /// When the console last asked for a live frame (ns since `Shared::started`).
+    pub last_request_ns: AtomicU64,
+    /// The last live frame was copied ([`ConsoleHandle::publish_frame`]), not swapped in: the
+    /// console asks at [`LIVE_COPY_FPS`] instead of [`LIVE_FPS`].
+    pub copied: AtomicBool,
     pub freeze: AtomicBool,
     pub live: Mutex<LiveFrame>,
+}
+
+/// What the plots use of a measurement row, compact (40 bytes instead of a [`Measurement`]'s
+/// 96): the ring is written on the tracking thread, so less is cheaper.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PlotRow {
+    pub timestamp_s: f64,
+    pub angle_unwrapped_rad: f64,
+    pub position_mm: f32,
+    pub angle_rad: f32,
+    pub quality: f32,
+    pub rod: u32,
+    /// Camera index, -1 for fused rows.
+    pub camera: i32,
+    pub status: rodtrack_core::Status,
+}
+
+impl PlotRow {
+    const EMPTY: PlotRow = PlotRow {
+        timestamp_s: 0.0,
+        angle_unwrapped_rad: 0.0,
+        position_mm: 0.0,
+        angle_rad: 0.0,
+        quality: 0.0,
+        rod: 0,
+        camera: -1,
+        status: rodtrack_core::Status::Lost,
+    };
+
+    fn new(m: &Measurement) -> PlotRow {
+        PlotRow {
+            timestamp_s: m.timestamp_s,
+            angle_unwrapped_rad: m.angle_unwrapped_rad,
+            position_mm: m.position_mm as f32,
+            angle_rad: m.angle_rad as f32,
+            quality: m.quality as f32,
+            rod: m.rod,
+            camera: match m.camera {
+                rodtrack_core::CameraId::Camera(c) => c as i32,
+                rodtrack_core::CameraId::Fused => -1,
+            },
+            status: m.status,
+        }
+    }
 }
 
 /// The rows ring buffer: row `i` of `buf` has sequence number `next_seq - buf.len() + i`.
 #[derive(Debug, Default)]
 pub(crate) struct RowRing {
-    pub buf: VecDeque<Measurement>,
+    pub buf: VecDeque<PlotRow>,
     pub next_seq: u64,
+}
+
+impl RowRing {
+    /// Appends rows, dropping the oldest beyond [`ROW_CAPACITY`].
+    fn push<I: ExactSizeIterator<Item = PlotRow>>(&mut self, rows: I) {
+        let n = rows.len();
+        let skip = n.saturating_sub(ROW_CAPACITY);
+        let over = (self.buf.len() + n - skip).saturating_sub(ROW_CAPACITY);
+        self.buf.drain(..over);
+        self.buf.extend(rows.skip(skip));
+        self.next_seq += n as u64;
+    }
 }
 
 /// Everything the tracking side and the console share.
@@ -119,8 +212,12 @@ pub(crate) struct Shared {
     pub started: Instant,
     pub clients: AtomicUsize,
     pub frame_interval_ns: u64,
+    pub copy_interval_ns: u64,
     pub cameras: Vec<CameraSlot>,
     pub rows: Mutex<RowRing>,
+    /// Rows published while the console held `rows` (only publishers lock this one).
+    pub waiting_rows: Mutex<Vec<PlotRow>>,
+    pub rows_waiting: AtomicBool,
     pub stats: Mutex<Option<PipelineStats>>,
     pub calls: AtomicU64,
     pub total_ns: AtomicU64,
@@ -129,15 +226,61 @@ pub(crate) struct Shared {
 }
 
 impl Shared {
-    fn now_ns(&self) -> u64 {
+    pub(crate) fn now_ns(&self) -> u64 {
         self.started.elapsed().as_nanos() as u64
+    }
+
+    /// The console's side: asks every camera for a new live frame when the last request is at
+    /// least the live interval old (called on every client's tick; one request per interval
+    /// however many clients).
+    pub(crate) fn request_live_frames(&self) {
+        let now = self.now_ns();
+        for slot in &self.cameras {
+            let last = slot.last_request_ns.load(Ordering::Relaxed);
+            let interval = if slot.copied.load(Ordering::Relaxed) {
+                self.copy_interval_ns
+            } else {
+                self.frame_interval_ns
+            };
+            if now.saturating_sub(last) >= interval
+                && slot
+                    .last_request_ns
+                    .compare_exchange(last, now, Ordering::Relaxed, Ordering::Relaxed)
+                    .is_ok()
+            {
+                slot.want.store(true, Ordering::Release);
+            }
+        }
+    }
+
+    /// The console's side: no client is left, no live frames are wanted.
+    pub(crate) fn cancel_live_frames(&self) {
+        for slot in &self.cameras {
+            slot.want.store(false, Ordering::Relaxed);
+        }
+    }
+
+    /// True when the console wants `slot`'s next frame: a live frame was requested or a freeze
+    /// is pending. Two atomic loads.
+    fn due(slot: &CameraSlot) -> bool {
+        slot.want.load(Ordering::Acquire) || slot.freeze.load(Ordering::Relaxed)
+    }
+
+    /// Counts a frame offered by the tracking side.
+    fn count_frame(slot: &CameraSlot) {
+        if !slot.seen.load(Ordering::Relaxed) {
+            slot.seen.store(true, Ordering::Relaxed);
+        }
+        slot.frames.fetch_add(1, Ordering::Relaxed);
     }
 
     fn account(&self, t0: Instant) {
         let ns = t0.elapsed().as_nanos() as u64;
         self.calls.fetch_add(1, Ordering::Relaxed);
         self.total_ns.fetch_add(ns, Ordering::Relaxed);
-        self.max_ns.fetch_max(ns, Ordering::Relaxed);
+        if ns > self.max_ns.load(Ordering::Relaxed) {
+            self.max_ns.fetch_max(ns, Ordering::Relaxed);
+        }
     }
 
     pub(crate) fn overhead(&self) -> PublishOverhead {
@@ -170,12 +313,24 @@ impl Console {
         let local = listener
             .local_addr()
             .map_err(|source| ConsoleError::Bind { addr, source })?;
+        // The rows' ring is allocated and touched once, here: growing it (or faulting its pages
+        // in) would happen under the lock the tracking side takes.
+        let mut ring = VecDeque::with_capacity(ROW_CAPACITY);
+        ring.resize(ROW_CAPACITY, PlotRow::EMPTY);
+        ring.clear();
+        let started = Instant::now();
         let shared = Arc::new(Shared {
-            started: Instant::now(),
+            started,
             clients: AtomicUsize::new(0),
             frame_interval_ns: (1e9 / LIVE_FPS) as u64,
+            copy_interval_ns: (1e9 / LIVE_COPY_FPS) as u64,
             cameras: (0..MAX_CAMERAS).map(|_| CameraSlot::default()).collect(),
-            rows: Mutex::new(RowRing::default()),
+            rows: Mutex::new(RowRing {
+                buf: ring,
+                next_seq: 0,
+            }),
+            waiting_rows: Mutex::new(Vec::new()),
+            rows_waiting: AtomicBool::new(false),
             stats: Mutex::new(None),
             calls: AtomicU64::new(0),
             total_ns: AtomicU64::new(0),
@@ -242,27 +397,20 @@ impl ConsoleHandle {
     }
 
     /// True when the next [`ConsoleHandle::publish_frame`] of `camera` would copy the frame
-    /// (a browser is connected and the live view is due, or a freeze is pending): compute the
-    /// overlays only then.
+    /// (a browser is connected and asked for a live frame, a few times per second, or a freeze
+    /// is pending): compute the overlays only then. Two atomic loads.
     pub fn wants_frame(&self, camera: u32) -> bool {
         let Some(slot) = self.shared.cameras.get(camera as usize) else {
             return false;
         };
-        if slot.freeze.load(Ordering::Relaxed) {
-            return true;
-        }
-        self.shared.clients.load(Ordering::Relaxed) > 0
-            && self
-                .shared
-                .now_ns()
-                .saturating_sub(slot.last_copy_ns.load(Ordering::Relaxed))
-                >= self.shared.frame_interval_ns
+        Shared::due(slot)
     }
 
     /// Offers one camera's frame with its overlays. Cheap: it counts the frame and returns,
-    /// unless the live view is due (then the raw frame is copied, one `memcpy` of about 0.1 ms
-    /// for 1440x1080, into the camera's latest-frame slot, skipped if the console is reading it) or a freeze was asked for (then the full
-    /// frame is copied for calibration). Cameras `>= MAX_CAMERAS` are ignored.
+    /// unless the live view is due (then the raw frame is copied, decimated to at most
+    /// [`LIVE_COPY_MAX_WIDTH`] px across, into the camera's latest-frame slot; skipped if the
+    /// console is reading it) or a freeze was asked for (then the full frame is copied for
+    /// calibration). Cameras `>= MAX_CAMERAS` are ignored.
     pub fn publish_frame(
         &self,
         camera: u32,
@@ -271,28 +419,32 @@ impl ConsoleHandle {
         timestamp_s: f64,
         overlays: &[RodOverlay],
     ) {
-        let t0 = Instant::now();
         let sh = &self.shared;
         let Some(slot) = sh.cameras.get(camera as usize) else {
             return;
         };
-        slot.seen.store(true, Ordering::Relaxed);
-        slot.frames.fetch_add(1, Ordering::Relaxed);
+        Shared::count_frame(slot);
+        if !Shared::due(slot) {
+            return;
+        }
+        let t0 = Instant::now();
         if slot.freeze.load(Ordering::Relaxed) {
             if let Ok(mut cal) = sh.calib.try_lock() {
                 cal.freeze(camera, OwnedFrame::from_view(frame, frame_id, timestamp_s));
                 slot.freeze.store(false, Ordering::Relaxed);
             }
         }
-        if self.wants_frame(camera) {
+        if slot.want.load(Ordering::Acquire) {
             if let Ok(mut live) = slot.live.try_lock() {
-                live.raw.copy_from(frame, frame_id, timestamp_s);
-                live.decimation = 1;
+                let d = live_decimation(frame.width(), frame.format());
+                live.raw.copy_decimated(frame, d, frame_id, timestamp_s);
+                live.decimation = d;
                 live.full_size = (frame.width(), frame.height());
                 live.overlays.clear();
                 live.overlays.extend_from_slice(overlays);
                 live.seq += 1;
-                slot.last_copy_ns.store(sh.now_ns(), Ordering::Relaxed);
+                slot.want.store(false, Ordering::Relaxed);
+                slot.copied.store(true, Ordering::Relaxed);
             }
         }
         sh.account(t0);
@@ -315,13 +467,15 @@ impl ConsoleHandle {
         timestamp_s: f64,
         overlays: &[RodOverlay],
     ) -> bool {
-        let t0 = Instant::now();
         let sh = &self.shared;
         let Some(slot) = sh.cameras.get(camera as usize) else {
             return false;
         };
-        slot.seen.store(true, Ordering::Relaxed);
-        slot.frames.fetch_add(1, Ordering::Relaxed);
+        Shared::count_frame(slot);
+        if !Shared::due(slot) {
+            return false;
+        }
+        let t0 = Instant::now();
         if slot.freeze.load(Ordering::Relaxed) {
             if let (Ok(view), Ok(mut cal)) = (
                 FrameView::new(buf, width, height, stride, format),
@@ -332,7 +486,7 @@ impl ConsoleHandle {
             }
         }
         let mut taken = false;
-        if self.wants_frame(camera) {
+        if slot.want.load(Ordering::Acquire) {
             if let Ok(mut live) = slot.live.try_lock() {
                 if live
                     .raw
@@ -344,7 +498,8 @@ impl ConsoleHandle {
                     live.overlays.clear();
                     live.overlays.extend_from_slice(overlays);
                     live.seq += 1;
-                    slot.last_copy_ns.store(sh.now_ns(), Ordering::Relaxed);
+                    slot.want.store(false, Ordering::Relaxed);
+                    slot.copied.store(false, Ordering::Relaxed);
                     taken = true;
                 }
             }
@@ -354,19 +509,41 @@ impl ConsoleHandle {
     }
 
     /// Appends measurement rows (any cameras, fused included) to the plots' ring buffer; the
-    /// oldest rows are dropped when it is full.
+    /// oldest rows are dropped when it is full. Never waits for the console: when the console
+    /// is copying rows out of the ring (or was preempted doing so), the rows wait in a side
+    /// buffer that only publishers lock, and go into the ring with the next call.
     pub fn publish_rows(&self, rows: &[Measurement]) {
+        if rows.is_empty() {
+            return;
+        }
         let t0 = Instant::now();
-        if let Ok(mut ring) = self.shared.rows.lock() {
-            for m in rows {
-                if ring.buf.len() == ROW_CAPACITY {
-                    ring.buf.pop_front();
+        let sh = &self.shared;
+        let ring = match sh.rows.try_lock() {
+            Ok(g) => Some(g),
+            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
+            Err(TryLockError::WouldBlock) => None,
+        };
+        match ring {
+            Some(mut ring) => {
+                if sh.rows_waiting.load(Ordering::Acquire) {
+                    if let Ok(mut waiting) = sh.waiting_rows.lock() {
+                        ring.push(waiting.drain(..));
+                        sh.rows_waiting.store(false, Ordering::Release);
+                    }
                 }
-                ring.buf.push_back(*m);
-                ring.next_seq += 1;
+                ring.push(rows.iter().map(PlotRow::new));
+            }
+            None => {
+                if let Ok(mut waiting) = sh.waiting_rows.lock() {
+                    let over = (waiting.len() + rows.len()).saturating_sub(ROW_CAPACITY);
+                    let len = waiting.len();
+                    waiting.drain(..over.min(len));
+                    waiting.extend(rows.iter().map(PlotRow::new));
+                    sh.rows_waiting.store(true, Ordering::Release);
+                }
             }
         }
-        self.shared.account(t0);
+        sh.account(t0);
     }
 
     /// Replaces the pipeline's counters shown on the page.
@@ -412,5 +589,66 @@ impl ConsoleHandle {
 impl Drop for ConsoleHandle {
     fn drop(&mut self) {
         self.stop_now();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rodtrack_core::{CameraId, Status};
+
+    fn rows(t: f64, n: u32) -> Vec<Measurement> {
+        (0..n)
+            .map(|rod| Measurement::empty(1, t, CameraId::Camera(0), rod, Status::Ok))
+            .collect()
+    }
+
+    #[test]
+    fn rows_never_wait_for_the_console() {
+        let console = Console::start("127.0.0.1:0".parse().unwrap(), None).unwrap();
+        let sh = console.shared.clone();
+        {
+            // The console is copying rows out: publishing does not wait for it.
+            let _held = sh.rows.lock().unwrap();
+            console.publish_rows(&rows(1.0, 3));
+            console.publish_rows(&rows(2.0, 2));
+            assert!(sh.rows_waiting.load(Ordering::Relaxed));
+        }
+        console.publish_rows(&rows(3.0, 1));
+        assert!(!sh.rows_waiting.load(Ordering::Relaxed));
+        let ring = sh.rows.lock().unwrap();
+        assert_eq!(ring.next_seq, 6);
+        let t: Vec<f64> = ring.buf.iter().map(|r| r.timestamp_s).collect();
+        assert_eq!(t, [1.0, 1.0, 1.0, 2.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn the_ring_keeps_the_newest_rows() {
+        let mut ring = RowRing::default();
+        let row = |t: f64| PlotRow {
+            timestamp_s: t,
+            ..PlotRow::EMPTY
+        };
+        ring.push((0..ROW_CAPACITY - 1).map(|i| row(i as f64)));
+        ring.push((0..3).map(|i| row(1e6 + i as f64)));
+        assert_eq!(ring.buf.len(), ROW_CAPACITY);
+        assert_eq!(ring.next_seq, ROW_CAPACITY as u64 + 2);
+        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(2.0));
+        assert_eq!(ring.buf.back().map(|r| r.timestamp_s), Some(1e6 + 2.0));
+        // More than the ring holds at once: the last ROW_CAPACITY.
+        ring.push((0..ROW_CAPACITY + 5).map(|i| row(i as f64)));
+        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(5.0));
+        assert_eq!(ring.next_seq, 2 * ROW_CAPACITY as u64 + 7);
+    }
+
+    #[test]
+    fn live_frames_are_decimated_to_the_live_width() {
+        use rodtrack_core::PixelFormat;
+        assert_eq!(live_decimation(1440, PixelFormat::BayerRggb8), 2);
+        assert_eq!(live_decimation(720, PixelFormat::BayerRggb8), 1);
+        assert_eq!(live_decimation(2048, PixelFormat::BayerRggb8), 3);
+        assert_eq!(live_decimation(1440, PixelFormat::Mono8), 2);
+        assert_eq!(live_decimation(640, PixelFormat::Mono8), 1);
+        assert_eq!(live_decimation(0, PixelFormat::Mono8), 1);
     }
 }

@@ -24,7 +24,7 @@
 
 use crate::calib::{calibrate_camera, new_rod, save, CalibState, RodOutcome};
 use crate::image::{preview, OwnedFrame};
-use crate::{ConsoleError, RodOverlay, Shared};
+use crate::{ConsoleError, PlotRow, RodOverlay, Shared};
 use axum::body::Bytes;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, State};
@@ -32,7 +32,7 @@ use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use rodtrack_core::{CameraId, Measurement, Status};
+use rodtrack_core::Status;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::fmt::Write as _;
@@ -50,6 +50,8 @@ const LIVE_MAX_WIDTH: usize = 720;
 const TICK_MS: u64 = 40;
 /// Most rows in one message.
 const MAX_ROWS_PER_MESSAGE: usize = 20_000;
+/// Most rows copied out of the ring per lock.
+const ROWS_PER_LOCK: usize = 4096;
 
 #[derive(Clone)]
 struct AppState {
@@ -224,11 +226,13 @@ async fn freeze(
     Ok(Json(json!({ "freeze_pending": true })))
 }
 
-/// `decimation`: full-resolution pixels per pixel of `frame`.
+/// `decimation`: full-resolution pixels per pixel of `frame`; `full_size`: the camera's frame
+/// size.
 fn encode_frame(
     camera: u32,
     frame: &OwnedFrame,
     decimation: usize,
+    full_size: (usize, usize),
     max_width: usize,
     overlays: &[RodOverlay],
 ) -> Option<Vec<u8>> {
@@ -238,8 +242,8 @@ fn encode_frame(
         "camera": camera,
         "frame_id": frame.frame_id(),
         "timestamp_s": frame.timestamp_s(),
-        "width": frame.width() * decimation,
-        "height": frame.height() * decimation,
+        "width": full_size.0,
+        "height": full_size.1,
         "pw": p.width,
         "ph": p.height,
         "channels": p.channels,
@@ -263,14 +267,17 @@ async fn frozen_frame(State(st): State<AppState>, Path(cam): Path<u32>) -> ApiRe
         camera: cam,
         reason: "no frozen frame".into(),
     })?;
-    let bytes = tokio::task::spawn_blocking(move || encode_frame(cam, &frame, 1, usize::MAX, &[]))
-        .await
-        .ok()
-        .flatten()
-        .ok_or(ConsoleError::Camera {
-            camera: cam,
-            reason: "the frozen frame cannot be shown".into(),
-        })?;
+    let bytes = tokio::task::spawn_blocking(move || {
+        let size = (frame.width(), frame.height());
+        encode_frame(cam, &frame, 1, size, usize::MAX, &[])
+    })
+    .await
+    .ok()
+    .flatten()
+    .ok_or(ConsoleError::Camera {
+        camera: cam,
+        reason: "the frozen frame cannot be shown".into(),
+    })?;
     Ok((
         [(header::CONTENT_TYPE, "application/octet-stream")],
         Bytes::from(bytes),
@@ -515,7 +522,9 @@ async fn ws(State(st): State<AppState>, upgrade: WebSocketUpgrade) -> Response {
 struct ClientGuard(Arc<Shared>);
 impl Drop for ClientGuard {
     fn drop(&mut self) {
-        self.0.clients.fetch_sub(1, Ordering::Relaxed);
+        if self.0.clients.fetch_sub(1, Ordering::Relaxed) == 1 {
+            self.0.cancel_live_frames();
+        }
     }
 }
 
@@ -531,39 +540,50 @@ fn status_code(s: Status) -> u8 {
     }
 }
 
-/// Rows from sequence `cursor` on, as one compact JSON message; returns the new cursor.
-fn rows_message(sh: &Shared, cursor: u64) -> (Option<String>, u64) {
-    let ring = lock(&sh.rows);
-    let first = ring.next_seq - ring.buf.len() as u64;
-    let from = cursor.max(first);
-    if from >= ring.next_seq {
-        return (None, ring.next_seq);
+/// Rows from sequence `cursor` on, as one compact JSON message; returns the new cursor. The
+/// rows are copied out under the lock (the tracking side's `publish_rows` waits for it) and
+/// formatted after it is released.
+fn rows_message(sh: &Shared, cursor: u64, scratch: &mut Vec<PlotRow>) -> (Option<String>, u64) {
+    scratch.clear();
+    let mut from = cursor;
+    // A few thousand rows per lock: the tracking side never waits more than microseconds.
+    while scratch.len() < MAX_ROWS_PER_MESSAGE {
+        let ring = lock(&sh.rows);
+        let first = ring.next_seq - ring.buf.len() as u64;
+        from = from.max(first);
+        let want = (MAX_ROWS_PER_MESSAGE - scratch.len()).min(ROWS_PER_LOCK) as u64;
+        let to = ring.next_seq.min(from + want);
+        if to <= from {
+            break;
+        }
+        scratch.extend(
+            ring.buf
+                .range((from - first) as usize..(to - first) as usize),
+        );
+        from = to;
     }
-    let to = ring.next_seq.min(from + MAX_ROWS_PER_MESSAGE as u64);
-    let mut s = String::with_capacity(((to - from) as usize) * 48 + 32);
+    if scratch.is_empty() {
+        return (None, from);
+    }
+    let to = from;
+    let mut s = String::with_capacity(scratch.len() * 48 + 32);
     s.push_str("{\"t\":\"rows\",\"rows\":[");
-    let start = (from - first) as usize;
-    let end = (to - first) as usize;
-    for (i, m) in ring.buf.range(start..end).enumerate() {
+    for (i, m) in scratch.iter().enumerate() {
         push_row(&mut s, m, i > 0);
     }
     s.push_str("]}");
     (Some(s), to)
 }
 
-fn push_row(s: &mut String, m: &Measurement, comma: bool) {
+fn push_row(s: &mut String, m: &PlotRow, comma: bool) {
     if comma {
         s.push(',');
     }
-    let cam: i64 = match m.camera {
-        CameraId::Camera(c) => c as i64,
-        CameraId::Fused => -1,
-    };
     let _ = write!(
         s,
         "[{:.5},{},{},{:.3},{:.4},{:.4},{:.2},{}]",
         m.timestamp_s,
-        cam,
+        m.camera,
         m.rod,
         m.position_mm,
         m.angle_unwrapped_rad,
@@ -581,6 +601,7 @@ async fn client(mut socket: WebSocket, st: AppState) {
     let mut tick = tokio::time::interval(Duration::from_millis(TICK_MS));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut cursor = 0u64;
+    let mut scratch = Vec::new();
     let mut sent_seq = vec![0u64; sh.cameras.len()];
     let mut last_stats = Instant::now() - Duration::from_secs(1);
     loop {
@@ -592,7 +613,9 @@ async fn client(mut socket: WebSocket, st: AppState) {
                 _ => continue,
             },
         }
-        let (rows, next) = rows_message(&sh, cursor);
+        // The tracking side copies a live frame only when asked (a few times per second).
+        sh.request_live_frames();
+        let (rows, next) = rows_message(&sh, cursor, &mut scratch);
         cursor = next;
         if let Some(text) = rows {
             if socket.send(Message::Text(text.into())).await.is_err() {
@@ -633,6 +656,7 @@ async fn client(mut socket: WebSocket, st: AppState) {
                                 cam as u32,
                                 &live.raw,
                                 live.decimation.max(1),
+                                live.full_size,
                                 LIVE_MAX_WIDTH,
                                 &live.overlays,
                             )

@@ -272,6 +272,38 @@ fn demo_in_the_browser_screenshot_and_calibration_equal_to_the_cli() {
             100.0 * tm.share_at(200.0, 2.0, 2.0 * rodtrack_console::LIVE_FPS)
         );
     });
+    // The copy path (`rodtrack track --console`): decimated live frames (a 1440x1080 Bayer
+    // frame copied as 720x540, shown as 360x270), drawn enlarged under sharp overlays.
+    std::thread::scope(|s| {
+        let runner = s.spawn(|| demo.run(&console, 600, true, false));
+        b.wait_for(
+            "rodtrack.cams.get(0) && rodtrack.cams.get(0).header.factor === 4",
+            Duration::from_secs(120),
+        );
+        let shown = b.eval(
+            "(() => { const p = rodtrack.cams.get(0), h = p.header; \
+             const d = p.ctx.getImageData(0, 0, p.canvas.width, p.canvas.height).data; \
+             let n = 0; for (let i = 0; i < d.length; i += 4) if (d[i] + d[i+1] + d[i+2] > 60) n++; \
+             return [h.width, h.height, h.pw, h.ph, p.canvas.width, p.canvas.height, n / (d.length / 4)]; })()",
+        );
+        let v: Vec<f64> = shown
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert_eq!(
+            &v[..6],
+            &[1440.0, 1080.0, 360.0, 270.0, 720.0, 540.0],
+            "{shown}"
+        );
+        assert!(v[6] > 0.5, "decimated frame mostly dark: {shown}");
+        let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../target/console-demo-copy.png");
+        std::fs::write(&target, b.screenshot()).unwrap();
+        eprintln!("screenshot of the copy path: {}", target.display());
+        runner.join().unwrap();
+    });
     // Calibrate in the console with the simulator's clicks: the same file as `rodtrack
     // calibrate` (calibrate_rod on the same inputs and reference frames) makes.
     let (code, st) = post_json(addr, "/api/calibrate", json!({}));

@@ -334,8 +334,9 @@ impl DemoLoop<'_> {
         self.filtered.clear();
         self.filter.process(&self.rows, &mut self.filtered);
         self.filtered.retain(|m| m.camera == CameraId::Fused);
+        // Each camera's rows and the fused ones, in one call.
+        self.rows.extend_from_slice(&self.filtered);
         self.console.publish_rows(&self.rows);
-        self.console.publish_rows(&self.filtered);
         self.frame_us.push(t.elapsed().as_secs_f64() * 1e6);
         self.processed += 1;
         if self.last_stats.elapsed() >= Duration::from_millis(250) {

@@ -86,6 +86,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
+    let mut overlays = Vec::new();
     let tty = std::io::stdout().is_terminal() && console.is_none();
     let mut last_draw = Instant::now();
     let t_loop = Instant::now();
@@ -100,17 +101,6 @@ pub fn run(args: Args) -> Result<()> {
             let t1 = Instant::now();
             pipes[c].process(&view, meta.frame_id, meta.timestamp_s, &mut rows)?;
             proc_us.push(t1.elapsed().as_secs_f64() * 1e6);
-            if let Some(con) = console.as_ref() {
-                if con.wants_frame(c as u32) {
-                    let overlays: Vec<_> = pipes[c]
-                        .rods()
-                        .iter()
-                        .zip(pipes[c].last_results())
-                        .map(|(t, r)| rodtrack_console::overlays_for(t, r))
-                        .collect();
-                    con.publish_frame(c as u32, &view, meta.frame_id, meta.timestamp_s, &overlays);
-                }
-            }
             if std::env::var_os("RODTRACK_DEBUG").is_some() && f % 50 == 0 {
                 for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
                     eprintln!(
@@ -160,6 +150,31 @@ pub fn run(args: Args) -> Result<()> {
             }
             for t in tr_rows {
                 truth.push((t.m, Some(t.visible)));
+            }
+            // Last use of this frame: the console may take its buffer (a swap, no copy; the
+            // buffer given back is rendered into next time).
+            if let Some(con) = console.as_ref() {
+                if con.wants_frame(c as u32) {
+                    overlays.clear();
+                    overlays.extend(
+                        pipes[c]
+                            .rods()
+                            .iter()
+                            .zip(pipes[c].last_results())
+                            .map(|(t, r)| rodtrack_console::overlays_for(t, r)),
+                    );
+                    con.publish_frame_buffer(
+                        c as u32,
+                        &mut bufs[c],
+                        meta.width,
+                        meta.height,
+                        meta.stride,
+                        meta.format,
+                        meta.frame_id,
+                        meta.timestamp_s,
+                        &overlays,
+                    );
+                }
             }
         }
         all.extend(rows.iter().map(|m| (*m, None)));

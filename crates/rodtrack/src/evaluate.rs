@@ -3,15 +3,15 @@
 //! with the paper's reference numbers (SPEC section 7) and plots in the style of its figures
 //! 13-16.
 
+use crate::calibrate::calibrate_from_view;
 use crate::plots::{write_figure, Figure, Line, Panel, Series, PALETTE};
 use crate::score::{score, wrap_angle, Stats};
 use crate::simulate::build;
 use anyhow::{anyhow, bail, Context, Result};
 use plotters::style::RGBColor;
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
+use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{
-    CameraId, CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode,
-    Status,
+    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
 };
 use rodtrack_sim::SCENARIO_NAMES;
 use std::collections::BTreeMap;
@@ -245,36 +245,18 @@ fn calibrate_all(sim: &mut rodtrack_sim::Simulation, seed: u64) -> Result<Calibr
                 s.spawn(move || -> Result<(CameraCalibration, Vec<String>)> {
                     let view =
                         FrameView::new(buf, meta.width, meta.height, meta.stride, meta.format)?;
-                    let intr = match &inputs.opencv_model_optional {
-                        Some(m) => Some(CameraIntrinsics::from_opencv(
-                            m.camera_matrix,
-                            &m.dist_coeffs,
-                        )?),
-                        None => None,
-                    };
-                    let mut rods = Vec::new();
-                    let mut warnings = Vec::new();
-                    for r in &inputs.rods {
-                        let cal = calibrate_rod(r, &view, intr.as_ref())
-                            .with_context(|| format!("camera {c}: calibrating rod {}", r.rod))?;
-                        for w in &cal.residuals.warnings {
-                            warnings.push(format!("camera {c} rod {}: {w}", r.rod));
-                        }
-                        rods.push(cal);
-                    }
-                    Ok((
-                        CameraCalibration {
-                            name: inputs.camera_name.clone(),
-                            index: c as u32,
-                            image_width: meta.width,
-                            image_height: meta.height,
-                            pixel_format: meta.format.name().to_string(),
-                            fps: inputs.fps.unwrap_or(200.0),
-                            opencv_model: inputs.opencv_model_optional.clone(),
-                            rods,
-                        },
-                        warnings,
-                    ))
+                    let cal = calibrate_from_view(inputs, &view, c as u32, 200.0)?;
+                    let warnings = cal
+                        .rods
+                        .iter()
+                        .flat_map(|r| {
+                            r.residuals
+                                .warnings
+                                .iter()
+                                .map(move |w| format!("camera {c} rod {}: {w}", r.rod))
+                        })
+                        .collect();
+                    Ok((cal, warnings))
                 })
             })
             .collect();

@@ -444,6 +444,7 @@ pub fn run_cameras(
         };
         let t = Arc::new(ProcessTimes::default());
         times.push(t.clone());
+        let mut overlays = Vec::new();
         pipeline.add_camera(
             source,
             Box::new(move |meta, frame, rows| {
@@ -454,14 +455,17 @@ pub fn run_cameras(
                         let r = pipe
                             .process(&view, meta.frame_id, ts, rows)
                             .map_err(|e| e.to_string());
+                        // The frame is the runtime's: the console gets a decimated copy, and
+                        // only when it asks for one (two atomic loads per frame otherwise).
                         if let (Ok(()), Some(c)) = (&r, console.as_ref()) {
                             if c.wants_frame(cam_index) {
-                                let overlays: Vec<_> = pipe
-                                    .rods()
-                                    .iter()
-                                    .zip(pipe.last_results())
-                                    .map(|(t, r)| rodtrack_console::overlays_for(t, r))
-                                    .collect();
+                                overlays.clear();
+                                overlays.extend(
+                                    pipe.rods()
+                                        .iter()
+                                        .zip(pipe.last_results())
+                                        .map(|(t, r)| rodtrack_console::overlays_for(t, r)),
+                                );
                                 c.publish_frame(cam_index, &view, meta.frame_id, ts, &overlays);
                             }
                         }

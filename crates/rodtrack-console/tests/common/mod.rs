@@ -410,6 +410,8 @@ impl Demo {
                 let dt = t0.elapsed().as_secs_f64();
                 track_s += dt;
                 frame_track += dt;
+                // As `rodtrack demo` and `rodtrack track --console` do: overlays and the
+                // publish call only when the console wants the frame.
                 let t1 = Instant::now();
                 let copy = console.wants_frame(c as u32);
                 if copy {
@@ -417,21 +419,21 @@ impl Demo {
                     for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
                         overlays.push(overlays_for(tr, r));
                     }
-                }
-                if swap {
-                    console.publish_frame_buffer(
-                        c as u32,
-                        &mut bufs[c],
-                        m.width,
-                        m.height,
-                        m.stride,
-                        m.format,
-                        k as u64,
-                        ts,
-                        &overlays,
-                    );
-                } else {
-                    console.publish_frame(c as u32, &view, k as u64, ts, &overlays);
+                    if swap {
+                        console.publish_frame_buffer(
+                            c as u32,
+                            &mut bufs[c],
+                            m.width,
+                            m.height,
+                            m.stride,
+                            m.format,
+                            k as u64,
+                            ts,
+                            &overlays,
+                        );
+                    } else {
+                        console.publish_frame(c as u32, &view, k as u64, ts, &overlays);
+                    }
                 }
                 let dt = t1.elapsed().as_secs_f64();
                 publish_s += dt;
@@ -448,9 +450,10 @@ impl Demo {
             let dt = t0.elapsed().as_secs_f64();
             track_s += dt;
             tm.track_s.push(frame_track + dt);
+            // Each camera's rows and the fused ones, in one call.
             let t1 = Instant::now();
+            rows.extend_from_slice(&filtered);
             console.publish_rows(&rows);
-            console.publish_rows(&filtered);
             tm.rows_s.push(t1.elapsed().as_secs_f64());
             if k % 50 == 0 {
                 console.publish_stats(&PipelineStats {
@@ -474,11 +477,11 @@ impl Demo {
 pub struct Timings {
     /// Tracking per frame set (every camera, filter and fusion).
     pub track_s: Vec<f64>,
-    /// `publish_frame` calls that copied a frame (with the overlays' computation).
+    /// Frames the console wanted: the overlays' computation and the publish call (copy or swap).
     pub frame_copy_s: Vec<f64>,
-    /// `publish_frame` calls that only counted the frame.
+    /// Frames it did not want: the `wants_frame` check only.
     pub frame_skip_s: Vec<f64>,
-    /// `publish_rows` per frame set.
+    /// `publish_rows` per frame set (each camera's rows and the fused ones).
     pub rows_s: Vec<f64>,
     /// Wall-clock totals.
     pub total_track_s: f64,
