@@ -73,6 +73,15 @@ const EDGE_HALF_CELLS: f64 = 0.5;
 const SEARCH_WINDOW_MM: f64 = 20.0;
 /// Fine-profile samples per cell.
 const EDGE_SAMPLES_PER_CELL: usize = 10;
+/// Frames over which the radius correction `eps` is scored every frame; then every
+/// [`EPS_RESCORE_EVERY`]th frame.
+const EPS_LEARN_FRAMES: u64 = 64;
+const EPS_RESCORE_EVERY: u64 = 8;
+/// Per-frame forgetting factor of the `eps` scores.
+const EPS_FORGET: f64 = 0.995;
+/// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
+/// across it in radii).
+const GRAY_SAMPLES: [(f64, f64); 5] = [(0.0, 0.0), (-0.2, 0.0), (0.2, 0.0), (0.0, -0.15), (0.0, 0.15)];
 /// Phase samples per stripe period.
 const PHASE_SAMPLES_PER_PERIOD: usize = 8;
 
@@ -123,6 +132,8 @@ struct EnhancedState {
     eps_acc: Vec<f64>,
     /// This frame's DFT per `eps` (scratch).
     eps_z: Vec<(f64, f64)>,
+    /// The best `eps` so far (index into `eps_tables`).
+    eps_best: usize,
     /// Phase samples summed over the rows (scratch).
     phase_v: Vec<f64>,
     /// Marker `u` of the rows across white and black rings used to measure the shading.
@@ -472,6 +483,7 @@ impl RodTracker {
             eps_tables,
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
+            eps_best: eps_values.len() / 2,
             phase_v: vec![0.0; count],
             phase_delta,
         }
@@ -791,13 +803,11 @@ impl RodTracker {
             let c = m.bit_space_centre_mm(kb as u32);
             let lp = st.knots.at(position + c);
             let mut acc = 0.0f32;
-            for da in [-0.2, 0.0, 0.2] {
-                for dc in [-0.15, 0.0, 0.15] {
-                    let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
-                    acc += frame.luma_bilinear(x as f32, y as f32);
-                }
+            for (da, dc) in GRAY_SAMPLES {
+                let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
+                acc += frame.luma_bilinear(x as f32, y as f32);
             }
-            *s = acc / 9.0;
+            *s = acc / GRAY_SAMPLES.len() as f32;
             if kb >= 2 {
                 let margin = ((*s - threshold).abs() as f64) / (0.5 * contrast);
                 min_high_margin = min_high_margin.min(margin);
@@ -838,7 +848,6 @@ impl RodTracker {
         // by the matched filter's energy, and the phase uses the best one so far.
         let rows = [-0.25, 0.0, 0.25];
         let n_eps = st.eps_tables.len();
-        st.eps_z.iter_mut().for_each(|z| *z = (0.0, 0.0));
         let mut sum_v = 0.0f64;
         let mut sum_w = 0.0f64;
         for r in rows {
@@ -856,34 +865,41 @@ impl RodTracker {
             }
         }
         let mean = sum_v / sum_w.max(1e-9);
-        for (k, table) in st.eps_tables.iter().enumerate() {
+        let dft = |table: &[(f64, f64, f64)], phase_v: &[f64]| {
             let (mut zr, mut zi) = (0.0f64, 0.0f64);
-            for (&(w, c, s_), &pv) in table.iter().zip(&st.phase_v) {
+            for (&(w, c, s_), &pv) in table.iter().zip(phase_v) {
                 let v = pv - 3.0 * mean;
                 zr += w * v * c;
                 zi += w * v * s_;
             }
-            st.eps_z[k] = (zr, zi);
-        }
-        // Learn: accumulate normalised energies (slowly forgetting), pick the best eps.
-        let e_max = st
-            .eps_z
-            .iter()
-            .map(|z| z.0 * z.0 + z.1 * z.1)
-            .fold(0.0, f64::max);
-        if e_max > 0.0 {
-            for (acc, z) in st.eps_acc.iter_mut().zip(&st.eps_z) {
-                *acc = 0.995 * *acc + (z.0 * z.0 + z.1 * z.1) / e_max;
+            (zr, zi)
+        };
+        // Learn: score the whole grid (while learning, then every 8th frame), accumulate the
+        // normalised energies (slowly forgetting), keep the best eps.
+        if st.frames_seen < EPS_LEARN_FRAMES || st.frames_seen % EPS_RESCORE_EVERY == 0 {
+            for (z, table) in st.eps_z.iter_mut().zip(&st.eps_tables) {
+                *z = dft(table, &st.phase_v);
+            }
+            let e_max = st
+                .eps_z
+                .iter()
+                .map(|z| z.0 * z.0 + z.1 * z.1)
+                .fold(0.0, f64::max);
+            if e_max > 0.0 {
+                let keep = if st.frames_seen < EPS_LEARN_FRAMES {
+                    EPS_FORGET
+                } else {
+                    EPS_FORGET.powi(EPS_RESCORE_EVERY as i32)
+                };
+                for (acc, z) in st.eps_acc.iter_mut().zip(&st.eps_z) {
+                    *acc = keep * *acc + (z.0 * z.0 + z.1 * z.1) / e_max;
+                }
+                st.eps_best = (0..n_eps)
+                    .max_by(|&a, &b| st.eps_acc[a].total_cmp(&st.eps_acc[b]))
+                    .unwrap_or(n_eps / 2);
             }
         }
-        let best = (0..n_eps)
-            .max_by(|&a, &b| st.eps_acc[a].total_cmp(&st.eps_acc[b]))
-            .unwrap_or(n_eps / 2);
-        let (zr, zi) = if st.eps_acc[best] > 0.0 {
-            st.eps_z[best]
-        } else {
-            st.eps_z[n_eps / 2]
-        };
+        let (zr, zi) = dft(&st.eps_tables[st.eps_best], &st.phase_v);
         let (ss, cc) = (zi, zr);
         let phi = ss.atan2(cc);
         let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sum_w.max(1e-9);
