@@ -4,7 +4,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode};
+use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode, RodTracker, Stage};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 
 fn setup() -> (
@@ -64,5 +64,33 @@ fn per_frame(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, per_frame);
+/// Each stage of the enhanced mode alone, over every rod of the frame (on the intermediate
+/// results of a full pass over the same frame).
+fn per_stage(c: &mut Criterion) {
+    let (buf, cal, (w, h, stride, fmt)) = setup();
+    let view = FrameView::new(&buf, w, h, stride, fmt).unwrap();
+    let mut rods: Vec<RodTracker> = cal
+        .rods
+        .iter()
+        .map(|r| RodTracker::new(r, w, h, Mode::Enhanced).unwrap())
+        .collect();
+    for _ in 0..100 {
+        for r in &mut rods {
+            r.process(&view).unwrap();
+        }
+    }
+    let mut g = c.benchmark_group("per_stage");
+    for stage in Stage::ALL {
+        g.bench_function(format!("{}_{}_rods", stage.name(), rods.len()), |b| {
+            b.iter(|| {
+                for r in &mut rods {
+                    assert!(r.run_stage(&view, stage));
+                }
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, per_frame, per_stage);
 criterion_main!(benches);
