@@ -82,6 +82,11 @@ const EPS_FORGET: f64 = 0.995;
 /// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
 /// across it in radii).
 const GRAY_SAMPLES: [(f64, f64); 5] = [(0.0, 0.0), (-0.2, 0.0), (0.2, 0.0), (0.0, -0.15), (0.0, 0.15)];
+/// How far the marker may move from where the print's shading was measured before it is
+/// measured again, mm.
+const SHADING_REUSE_MM: f64 = 5.0;
+/// For how many frames a shading measurement is reused at most.
+const SHADING_REUSE_FRAMES: u32 = 8;
 /// Phase samples per stripe period.
 const PHASE_SAMPLES_PER_PERIOD: usize = 8;
 
@@ -142,6 +147,12 @@ struct EnhancedState {
     /// Shading of white and black print at each phase sample angle (scratch).
     white: Vec<f64>,
     black: Vec<f64>,
+    /// The last measured shading, relative to that frame's barcode levels (0 black, 1 white),
+    /// where it was measured, and how many frames ago.
+    white_rel: Vec<f64>,
+    black_rel: Vec<f64>,
+    shading_at_mm: f64,
+    shading_age: u32,
     /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame.
     ring_u: Vec<f64>,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
@@ -470,6 +481,10 @@ impl RodTracker {
             black_u: run_rows(true),
             white: vec![0.0; n_phase],
             black: vec![0.0; n_phase],
+            white_rel: vec![0.0; n_phase],
+            black_rel: vec![0.0; n_phase],
+            shading_at_mm: f64::NAN,
+            shading_age: 0,
             knots,
             coarse_s0: first,
             coarse_step: step,
@@ -635,7 +650,7 @@ impl RodTracker {
         let inter = Intermediate { loc, edges };
         st.inter = Some(inter);
         let (alpha, min_high_margin) = st.gray_code(m, frame, &inter);
-        st.shading(m, calib.reference_position_mm, frame, &inter);
+        st.shading(m, calib.reference_position_mm, frame, &inter, false);
         let (phi, amp_ratio) = st.phase(m, calib.reference_position_mm, frame, &inter);
         st.judge(m, calib, &inter, alpha, min_high_margin, phi, amp_ratio)
     }
@@ -693,7 +708,7 @@ impl RodTracker {
             Stage::Gray => {
                 std::hint::black_box(st.gray_code(m, frame, &inter));
             }
-            Stage::Shading => st.shading(m, calib.reference_position_mm, frame, &inter),
+            Stage::Shading => st.shading(m, calib.reference_position_mm, frame, &inter, true),
             Stage::Phase => {
                 std::hint::black_box(st.phase(m, calib.reference_position_mm, frame, &inter));
             }
@@ -1031,15 +1046,31 @@ impl EnhancedState {
     }
 
     /// The shading of white and black print across the rod, from the barcode's runs (into
-    /// `white` and `black`, per phase sample).
+    /// `white` and `black`, per phase sample). The light is fixed, so while the marker stays
+    /// within [`SHADING_REUSE_MM`] of where the shading was last measured (and for at most
+    /// [`SHADING_REUSE_FRAMES`] frames), the last measurement is reused, rescaled to this
+    /// frame's barcode levels (which follow exposure changes and flicker); `force` measures.
     fn shading(
         &mut self,
         m: &Marker,
         reference_position_mm: f64,
         frame: &FrameView,
         inter: &Intermediate,
+        force: bool,
     ) {
         let position = inter.edges.position_mm;
+        let (lo, span) = (inter.loc.black, inter.loc.white - inter.loc.black);
+        let near = (position - self.shading_at_mm).abs() <= SHADING_REUSE_MM;
+        if !force && near && self.shading_age < SHADING_REUSE_FRAMES {
+            self.shading_age += 1;
+            for (o, r) in self.white.iter_mut().zip(&self.white_rel) {
+                *o = lo + r * span;
+            }
+            for (o, r) in self.black.iter_mut().zip(&self.black_rel) {
+                *o = lo + r * span;
+            }
+            return;
+        }
         let ca = self.centre_at(m, reference_position_mm, position);
         for (rows_u, out) in [
             (&self.white_u, &mut self.white),
@@ -1065,6 +1096,14 @@ impl EnhancedState {
                 prev = cur;
             }
         }
+        for (r, o) in self.white_rel.iter_mut().zip(&self.white) {
+            *r = (o - lo) / span;
+        }
+        for (r, o) in self.black_rel.iter_mut().zip(&self.black) {
+            *r = (o - lo) / span;
+        }
+        self.shading_at_mm = position;
+        self.shading_age = 0;
     }
 
     /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection:
