@@ -643,8 +643,14 @@ impl RodTracker {
             _ => p,
         });
         st.frames_seen = st.frames_seen.wrapping_add(1);
-        // Once the line is well learnt, every 4th frame is enough to follow slow changes.
-        if st.centre.samples() < 300.0 || st.frames_seen % 4 == 0 {
+        // Once the line is learnt, every 4th frame, then every 16th, is enough to follow slow
+        // changes.
+        let every = match st.centre.samples() {
+            n if n < 300.0 => 1,
+            n if n < 3000.0 => 4,
+            _ => 16,
+        };
+        if st.frames_seen % every == 0 {
             st.learn_centre(frame, edges.position_mm);
         }
         let inter = Intermediate { loc, edges };
