@@ -125,6 +125,8 @@ struct EnhancedState {
     cell_len: usize,
     edges: Vec<(f64, bool)>,
     edge_offsets: Vec<(f64, f64)>,
+    /// Usual offset of the edges from the coarse peak, mm (learnt; centres the profiles).
+    edge_bias_mm: f64,
     /// The mm scale along the rod learnt from the barcode's length over all frames.
     scale: ScaleFit,
     profile: Vec<f32>,
@@ -500,6 +502,7 @@ impl RodTracker {
             cell_len,
             edges: marker.barcode_edges_mm(),
             edge_offsets: Vec::with_capacity(64),
+            edge_bias_mm: 0.0,
             scale: ScaleFit::default(),
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             eps_tables,
@@ -891,9 +894,11 @@ impl EnhancedState {
         let dstep = 2.0 * half / (n_prof - 1) as f64;
         st.edge_offsets.clear();
         for &(u_e, rising) in &st.edges {
-            let s_e = pos0 + u_e;
-            // The profile is read lazily: its two ends, then outward from the middle until the
-            // crossing (usually near the middle, as the coarse peak is within a quarter cell).
+            // The profile is centred where the edge is expected (the coarse peak plus its usual
+            // offset from the edges) and read lazily: its two ends, then outward from the
+            // middle until the crossing, which is then usually one of the first two pairs.
+            let bias = st.edge_bias_mm;
+            let s_e = pos0 + bias + u_e;
             let knots = &st.knots;
             let sample = |i: usize| {
                 let p = knots.at(s_e - half + i as f64 * dstep);
@@ -934,7 +939,7 @@ impl EnhancedState {
                 }
             }
             if let Some(o) = found {
-                st.edge_offsets.push((u_e, o));
+                st.edge_offsets.push((u_e, o + bias));
             }
         }
         let n_edges = st.edge_offsets.len();
@@ -985,6 +990,8 @@ impl EnhancedState {
         let s_centroid = pos0 + u_mean + mean_off;
         if n_in >= 8.0 {
             st.scale.add(s_centroid, slope);
+            st.edge_bias_mm += 0.1 * (mean_off - st.edge_bias_mm);
+            st.edge_bias_mm = st.edge_bias_mm.clamp(-0.25 * cell, 0.25 * cell);
         }
         let s_ref_c = reference_position_mm + u_mean;
         let position_out = st.scale.to_true(s_centroid, s_ref_c) - u_mean;
