@@ -353,6 +353,34 @@ impl<'a> FrameView<'a> {
         self.luma_bilinear_reference(x, y)
     }
 
+    /// Reads one byte of every cache line of the pixel rectangle `[x0, x1] x [y0, y1]`
+    /// (clamped to the frame), so that the samplers later find it in cache. A new frame comes
+    /// from memory, not from the cache: touching every rod's region first lets those reads
+    /// overlap, instead of each sample waiting for its own. Returns a mix of the bytes read
+    /// (to keep the reads).
+    pub fn touch_rect(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> u8 {
+        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+            return 0;
+        }
+        let clamp = |v: f64, max: usize| v.clamp(0.0, max as f64) as usize;
+        let (x0, x1) = (clamp(x0, self.width - 1), clamp(x1, self.width - 1));
+        let (y0, y1) = (clamp(y0, self.height - 1), clamp(y1, self.height - 1));
+        if x1 < x0 || y1 < y0 {
+            return 0;
+        }
+        let bpp = self.format.bytes_per_pixel();
+        let mut acc = 0u8;
+        for y in y0..=y1 {
+            let row = y * self.stride;
+            let (a, b) = (row + x0 * bpp, row + x1 * bpp + bpp - 1);
+            for off in (a..=b).step_by(64) {
+                acc ^= self.data[off];
+            }
+            acc ^= self.data[b];
+        }
+        acc
+    }
+
     /// True when the point lies inside the frame with `margin` pixels to spare.
     pub fn contains(&self, x: f32, y: f32, margin: f32) -> bool {
         x >= margin

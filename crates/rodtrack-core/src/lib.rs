@@ -21,4 +21,4 @@ pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
 pub use pipeline::{CameraPipeline, FrameSetFilter};
-pub use track::{Mode, RodResult, RodTracker};
+pub use track::{Mode, RodResult, RodTracker, Stage};

@@ -62,6 +62,12 @@ impl CameraPipeline {
         timestamp_s: f64,
         out: &mut Vec<Measurement>,
     ) -> Result<(), CoreError> {
+        // Bring every rod's region of the new frame into the cache at once (the reads overlap).
+        let mut touched = 0u8;
+        for tr in &self.rods {
+            touched ^= tr.prefetch(frame);
+        }
+        std::hint::black_box(touched);
         for ((tr, turn), last) in self
             .rods
             .iter_mut()

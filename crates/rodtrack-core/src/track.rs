@@ -73,6 +73,20 @@ const EDGE_HALF_CELLS: f64 = 0.5;
 const SEARCH_WINDOW_MM: f64 = 20.0;
 /// Fine-profile samples per cell.
 const EDGE_SAMPLES_PER_CELL: usize = 10;
+/// Frames over which the radius correction `eps` is scored every frame; then every
+/// [`EPS_RESCORE_EVERY`]th frame.
+const EPS_LEARN_FRAMES: u64 = 64;
+const EPS_RESCORE_EVERY: u64 = 8;
+/// Per-frame forgetting factor of the `eps` scores.
+const EPS_FORGET: f64 = 0.995;
+/// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
+/// across it in radii).
+const GRAY_SAMPLES: [(f64, f64); 5] = [(0.0, 0.0), (-0.2, 0.0), (0.2, 0.0), (0.0, -0.15), (0.0, 0.15)];
+/// How far the marker may move from where the print's shading was measured before it is
+/// measured again, mm.
+const SHADING_REUSE_MM: f64 = 5.0;
+/// For how many frames a shading measurement is reused at most.
+const SHADING_REUSE_FRAMES: u32 = 8;
 /// Phase samples per stripe period.
 const PHASE_SAMPLES_PER_PERIOD: usize = 8;
 
@@ -111,6 +125,8 @@ struct EnhancedState {
     cell_len: usize,
     edges: Vec<(f64, bool)>,
     edge_offsets: Vec<(f64, f64)>,
+    /// Usual offset of the edges from the coarse peak, mm (learnt; centres the profiles).
+    edge_bias_mm: f64,
     /// The mm scale along the rod learnt from the barcode's length over all frames.
     scale: ScaleFit,
     profile: Vec<f32>,
@@ -123,6 +139,8 @@ struct EnhancedState {
     eps_acc: Vec<f64>,
     /// This frame's DFT per `eps` (scratch).
     eps_z: Vec<(f64, f64)>,
+    /// The best `eps` so far (index into `eps_tables`).
+    eps_best: usize,
     /// Phase samples summed over the rows (scratch).
     phase_v: Vec<f64>,
     /// Marker `u` of the rows across white and black rings used to measure the shading.
@@ -131,12 +149,23 @@ struct EnhancedState {
     /// Shading of white and black print at each phase sample angle (scratch).
     white: Vec<f64>,
     black: Vec<f64>,
+    /// The last measured shading, relative to that frame's barcode levels (0 black, 1 white),
+    /// where it was measured, and how many frames ago.
+    white_rel: Vec<f64>,
+    black_rel: Vec<f64>,
+    shading_at_mm: f64,
+    shading_age: u32,
     /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame.
     ring_u: Vec<f64>,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
     centre: CentreFit,
     /// Frames processed (for decimating the learning).
     frames_seen: u64,
+    /// The last frame's results between stages, when it got past the edges.
+    inter: Option<Intermediate>,
+    /// Where the marker is expected in the next frame (last position plus last motion), mm on
+    /// the calibrated line; `None` when the last frame did not find it.
+    predicted_mm: Option<f64>,
 }
 
 /// The mm scale of the calibrated line, learnt over frames: each frame's barcode gives the
@@ -448,10 +477,16 @@ impl RodTracker {
             ring_u,
             centre: CentreFit::default(),
             frames_seen: 0,
+            inter: None,
+            predicted_mm: None,
             white_u: run_rows(false),
             black_u: run_rows(true),
             white: vec![0.0; n_phase],
             black: vec![0.0; n_phase],
+            white_rel: vec![0.0; n_phase],
+            black_rel: vec![0.0; n_phase],
+            shading_at_mm: f64::NAN,
+            shading_age: 0,
             knots,
             coarse_s0: first,
             coarse_step: step,
@@ -467,11 +502,13 @@ impl RodTracker {
             cell_len,
             edges: marker.barcode_edges_mm(),
             edge_offsets: Vec::with_capacity(64),
+            edge_bias_mm: 0.0,
             scale: ScaleFit::default(),
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             eps_tables,
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
+            eps_best: eps_values.len() / 2,
             phase_v: vec![0.0; count],
             phase_delta,
         }
@@ -590,11 +627,186 @@ impl RodTracker {
 
     fn process_enhanced(&mut self, frame: &FrameView) -> RodResult {
         let m = &self.marker;
+        let calib = &self.calib;
         let st = &mut self.enhanced;
+        let last_mm = st.inter.map(|i| i.edges.position_mm);
+        st.inter = None;
+        st.predicted_mm = None;
+        let loc = match st.locate(m, frame) {
+            Ok(loc) => loc,
+            Err(r) => return r,
+        };
+        let edges = match st.fit_edges(m, calib.reference_position_mm, frame, &loc) {
+            Ok(e) => e,
+            Err(r) => return r,
+        };
+        let p = edges.position_mm;
+        st.predicted_mm = Some(match last_mm {
+            Some(l) if (p - l).abs() < SEARCH_WINDOW_MM => 2.0 * p - l,
+            _ => p,
+        });
+        st.frames_seen = st.frames_seen.wrapping_add(1);
+        // Once the line is learnt, every 4th frame, then every 16th, is enough to follow slow
+        // changes.
+        let every = match st.centre.samples() {
+            n if n < 300.0 => 1,
+            n if n < 3000.0 => 4,
+            _ => 16,
+        };
+        if st.frames_seen % every == 0 {
+            st.learn_centre(frame, edges.position_mm);
+        }
+        let inter = Intermediate { loc, edges };
+        st.inter = Some(inter);
+        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter);
+        st.shading(m, calib.reference_position_mm, frame, &inter, false);
+        let (phi, amp_ratio) = st.phase(m, calib.reference_position_mm, frame, &inter);
+        st.judge(m, calib, &inter, alpha, min_high_margin, phi, amp_ratio)
+    }
+
+    /// Touches the frame's cache lines where this rod's marker is expected (enhanced mode, when
+    /// the last frame found it); see [`FrameView::touch_rect`]. Call it for every rod of a
+    /// frame before measuring any. Returns a mix of the bytes read.
+    pub fn prefetch(&self, frame: &FrameView) -> u8 {
+        let st = &self.enhanced;
+        let (Mode::Enhanced, Some(p)) = (self.mode, st.predicted_mm) else {
+            return 0;
+        };
+        let m = &self.marker;
+        let margin_mm = 3.0;
+        let (a, b) = (
+            p + m.barcode_start_mm() - margin_mm,
+            p + m.length_mm() + margin_mm,
+        );
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        let n = ((b - a) / 8.0).ceil().max(1.0) as usize;
+        for i in 0..=n {
+            let lp = st.knots.at(a + (b - a) * i as f64 / n as f64);
+            let r = 1.5 * lp.radius_px + 3.0;
+            for side in [-r, r] {
+                let (x, y) = lp.offset(0.0, side);
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+        }
+        frame.touch_rect(x0, y0, x1, y1)
+    }
+
+    /// Runs one stage of the enhanced mode on `frame`, on the intermediate results of the last
+    /// [`RodTracker::process`] call (for per-stage benchmarks and diagnostics). Returns `false`
+    /// (and does nothing) when the last call did not get that far.
+    pub fn run_stage(&mut self, frame: &FrameView, stage: Stage) -> bool {
+        let m = &self.marker;
+        let calib = &self.calib;
+        let st = &mut self.enhanced;
+        let Some(inter) = st.inter else {
+            return false;
+        };
+        match stage {
+            Stage::Locate => {
+                let last_k = st.last_k;
+                let _ = st.locate(m, frame);
+                st.last_k = last_k;
+            }
+            Stage::Edges => {
+                let _ = st.fit_edges(m, calib.reference_position_mm, frame, &inter.loc);
+            }
+            Stage::Centre => st.learn_centre(frame, inter.edges.position_mm),
+            Stage::Gray => {
+                std::hint::black_box(st.gray_code(m, frame, &inter));
+            }
+            Stage::Shading => st.shading(m, calib.reference_position_mm, frame, &inter, true),
+            Stage::Phase => {
+                std::hint::black_box(st.phase(m, calib.reference_position_mm, frame, &inter));
+            }
+        }
+        st.inter = Some(inter);
+        true
+    }
+}
+
+/// The stages of the enhanced mode, in order (see [`RodTracker::run_stage`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Coarse line and barcode correlation (steps 1-2).
+    Locate,
+    /// Sub-pixel position from the barcode's 12 edges (step 3).
+    Edges,
+    /// The white rings' silhouettes feeding the learnt centre line.
+    Centre,
+    /// The Gray bits (step 4).
+    Gray,
+    /// The print's shading across the rod, from the barcode's runs.
+    Shading,
+    /// The phase over bit space 0 (step 5).
+    Phase,
+}
+
+impl Stage {
+    /// Every stage, in order.
+    pub const ALL: [Stage; 6] = [
+        Stage::Locate,
+        Stage::Edges,
+        Stage::Centre,
+        Stage::Gray,
+        Stage::Shading,
+        Stage::Phase,
+    ];
+
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Locate => "locate",
+            Stage::Edges => "edges",
+            Stage::Centre => "centre",
+            Stage::Gray => "gray",
+            Stage::Shading => "shading",
+            Stage::Phase => "phase",
+        }
+    }
+}
+
+/// Where the coarse search found the barcode.
+#[derive(Debug, Clone, Copy)]
+struct Located {
+    /// Coarse candidate.
+    k: usize,
+    /// Its correlation.
+    ncc: f64,
+    /// Marker position on the calibrated line from the coarse peak, mm.
+    pos0_mm: f64,
+    /// Print levels from the barcode's cells.
+    white: f64,
+    black: f64,
+}
+
+/// The position from the barcode's edges.
+#[derive(Debug, Clone, Copy)]
+struct EdgeFit {
+    /// Marker position on the calibrated line, mm.
+    position_mm: f64,
+    /// The same in true mm (the learnt scale applied).
+    position_out_mm: f64,
+    /// Spread of the edges around their fit, mm.
+    edge_std_mm: f64,
+}
+
+/// One frame's results between stages.
+#[derive(Debug, Clone, Copy)]
+struct Intermediate {
+    loc: Located,
+    edges: EdgeFit,
+}
+
+impl EnhancedState {
+    /// Steps 1-2: coarse line at 1/4 cell (nearest luma node) and the NCC with the cell kernel
+    /// in O(samples x cells): first in a window around the last frame's marker, and over the
+    /// whole travel when that finds no clear peak inside the window.
+    fn locate(&mut self, m: &Marker, frame: &FrameView) -> Result<Located, RodResult> {
+        let st = self;
         let node_off = frame.node_offset() as f64;
-        // 1-2. Coarse line at 1/4 cell (nearest luma node) and the NCC with the cell kernel in
-        // O(samples x cells): first in a window around the last frame's marker, and over the
-        // whole travel when that finds no clear peak inside the window.
         let n_cand = st.corr.len();
         let window = (SEARCH_WINDOW_MM / st.coarse_step).ceil() as usize;
         let mut found = None;
@@ -612,26 +824,26 @@ impl RodTracker {
         }
         st.last_k = None;
         let Some((k, _, sub)) = found else {
-            return RodResult {
+            return Err(RodResult {
                 status: Status::OutOfView,
                 ..Default::default()
-            };
+            });
         };
         let ncc = st.corr[k] as f64;
         if !st.valid[k] {
-            return RodResult {
+            return Err(RodResult {
                 status: Status::OutOfView,
                 ..Default::default()
-            };
+            });
         }
         if ncc < 0.5 {
-            return RodResult {
+            return Err(RodResult {
                 status: Status::NotFound,
                 quality: ncc.max(0.0) * 0.5,
                 ncc,
                 reason: "weak barcode correlation",
                 ..Default::default()
-            };
+            });
         }
         let pos0 = st.coarse_s0 + (k as f64 + sub) * st.coarse_step - m.barcode_start_mm();
         // Black and white levels from the cells' middle samples.
@@ -649,25 +861,44 @@ impl RodTracker {
         }
         let white = w_sum / w_n.max(1) as f64;
         let black = b_sum / b_n.max(1) as f64;
-        let contrast = white - black;
-        if contrast < 8.0 {
-            return RodResult {
+        if white - black < 8.0 {
+            return Err(RodResult {
                 status: Status::NotFound,
                 ncc,
                 reason: "no contrast",
                 ..Default::default()
-            };
+            });
         }
-        // 3. Sub-pixel position from the barcode's edges.
+        Ok(Located {
+            k,
+            ncc,
+            pos0_mm: pos0,
+            white,
+            black,
+        })
+    }
+
+    /// Step 3: sub-pixel position from the barcode's edges, and the learnt mm scale.
+    fn fit_edges(
+        &mut self,
+        m: &Marker,
+        reference_position_mm: f64,
+        frame: &FrameView,
+        loc: &Located,
+    ) -> Result<EdgeFit, RodResult> {
+        let st = self;
+        let (pos0, contrast, ncc) = (loc.pos0_mm, loc.white - loc.black, loc.ncc);
         let cell = m.cell_mm();
         let n_prof = st.profile.len();
         let half = EDGE_HALF_CELLS * cell;
         let dstep = 2.0 * half / (n_prof - 1) as f64;
         st.edge_offsets.clear();
         for &(u_e, rising) in &st.edges {
-            let s_e = pos0 + u_e;
-            // The profile is read lazily: its two ends, then outward from the middle until the
-            // crossing (usually near the middle, as the coarse peak is within a quarter cell).
+            // The profile is centred where the edge is expected (the coarse peak plus its usual
+            // offset from the edges) and read lazily: its two ends, then outward from the
+            // middle until the crossing, which is then usually one of the first two pairs.
+            let bias = st.edge_bias_mm;
+            let s_e = pos0 + bias + u_e;
             let knots = &st.knots;
             let sample = |i: usize| {
                 let p = knots.at(s_e - half + i as f64 * dstep);
@@ -708,18 +939,18 @@ impl RodTracker {
                 }
             }
             if let Some(o) = found {
-                st.edge_offsets.push((u_e, o));
+                st.edge_offsets.push((u_e, o + bias));
             }
         }
         let n_edges = st.edge_offsets.len();
         if n_edges < st.edges.len() / 2 {
-            return RodResult {
+            return Err(RodResult {
                 status: Status::Occluded,
                 ncc,
                 quality: 0.2,
                 reason: "too few barcode edges",
                 ..Default::default()
-            };
+            });
         }
         st.edge_offsets.sort_unstable_by(|a, b| a.1.total_cmp(&b.1));
         let median = st.edge_offsets[n_edges / 2].1;
@@ -759,59 +990,110 @@ impl RodTracker {
         let s_centroid = pos0 + u_mean + mean_off;
         if n_in >= 8.0 {
             st.scale.add(s_centroid, slope);
+            st.edge_bias_mm += 0.1 * (mean_off - st.edge_bias_mm);
+            st.edge_bias_mm = st.edge_bias_mm.clamp(-0.25 * cell, 0.25 * cell);
         }
-        let s_ref_c = self.calib.reference_position_mm + u_mean;
+        let s_ref_c = reference_position_mm + u_mean;
         let position_out = st.scale.to_true(s_centroid, s_ref_c) - u_mean;
         let position = s_centroid - u_mean;
         // The rod's centre and apparent radius where the marker is: this frame's silhouettes of
-        // the marker's white rings feed the centre line learnt over all frames.
-        // Once the line is well learnt, every 4th frame is enough to follow slow changes.
-        st.frames_seen = st.frames_seen.wrapping_add(1);
-        if st.centre.samples() < 300.0 || st.frames_seen % 4 == 0 {
-            for &u in &st.ring_u {
-                let lp = st.knots.at(position + u);
-                if let Some((c, hw)) = ring_silhouette(frame, &lp) {
-                    st.centre.add(position + u, c, hw / lp.radius_px);
-                }
+        Ok(EdgeFit {
+            position_mm: position,
+            position_out_mm: position_out,
+            edge_std_mm: edge_std,
+        })
+    }
+
+    /// The rod's centre and apparent radius where the marker is: this frame's silhouettes of
+    /// the marker's white rings feed the centre line learnt over all frames.
+    fn learn_centre(&mut self, frame: &FrameView, position_mm: f64) {
+        for &u in &self.ring_u {
+            let lp = self.knots.at(position_mm + u);
+            if let Some((c, hw)) = ring_silhouette(frame, &lp) {
+                self.centre.add(position_mm + u, c, hw / lp.radius_px);
             }
         }
-        let c0 = m.bit_space_centre_mm(0);
-        let fit = st.centre;
-        let radius_ratio = fit.at(position + c0).1;
-        // Anchored at the reference pose: calibration fixed the absolute centre (and with it the
-        // angle offset) there; what is learnt is how the centre runs away from it.
-        let s_ref = self.calib.reference_position_mm;
-        let centre = |u: f64| fit.at(position + u).0 - fit.at(s_ref + u).0;
-        // 4. Gray bits at the centre of each bit space.
+    }
+
+    /// The learnt centre's offset at marker `u` relative to the reference pose (calibration
+    /// fixed the absolute centre, and with it the angle offset, there; what is learnt is how
+    /// the centre runs away from it), and the learnt radius ratio at bit space 0.
+    fn centre_at(&self, m: &Marker, reference_position_mm: f64, position_mm: f64) -> CentreAt {
+        CentreAt {
+            fit: self.centre,
+            position_mm,
+            reference_position_mm,
+            radius_ratio: self
+                .centre
+                .at(position_mm + m.bit_space_centre_mm(0))
+                .1,
+        }
+    }
+
+    /// Step 4: the Gray bits at the centre of each bit space: (decoded step, smallest margin
+    /// of the high bits, in half contrasts).
+    fn gray_code(&self, m: &Marker, frame: &FrameView, inter: &Intermediate) -> (u32, f64) {
+        let position = inter.edges.position_mm;
+        let (white, black) = (inter.loc.white, inter.loc.black);
+        let contrast = white - black;
         let bits = m.bits() as usize;
         let mut samples = [0.0f32; 8];
         let threshold = (0.5 * (white + black)) as f32;
         let mut min_high_margin = f64::MAX;
         for (kb, s) in samples.iter_mut().enumerate().take(bits) {
             let c = m.bit_space_centre_mm(kb as u32);
-            let lp = st.knots.at(position + c);
+            let lp = self.knots.at(position + c);
             let mut acc = 0.0f32;
-            for da in [-0.2, 0.0, 0.2] {
-                for dc in [-0.15, 0.0, 0.15] {
-                    let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
-                    acc += frame.luma_bilinear(x as f32, y as f32);
-                }
+            for (da, dc) in GRAY_SAMPLES {
+                let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
+                acc += frame.luma_bilinear(x as f32, y as f32);
             }
-            *s = acc / 9.0;
+            *s = acc / GRAY_SAMPLES.len() as f32;
             if kb >= 2 {
                 let margin = ((*s - threshold).abs() as f64) / (0.5 * contrast);
                 min_high_margin = min_high_margin.min(margin);
             }
         }
         let (_, alpha) = decode_bits(&samples[..bits], threshold);
-        // 5. Phase across the rod over bit space 0, with the cylinder's projection.
-        // The shading of white and black print across the rod, from the barcode's rings.
-        for (rows_u, out) in [(&st.white_u, &mut st.white), (&st.black_u, &mut st.black)] {
+        (alpha, min_high_margin)
+    }
+
+    /// The shading of white and black print across the rod, from the barcode's runs (into
+    /// `white` and `black`, per phase sample). The light is fixed, so while the marker stays
+    /// within [`SHADING_REUSE_MM`] of where the shading was last measured (and for at most
+    /// [`SHADING_REUSE_FRAMES`] frames), the last measurement is reused, rescaled to this
+    /// frame's barcode levels (which follow exposure changes and flicker); `force` measures.
+    fn shading(
+        &mut self,
+        m: &Marker,
+        reference_position_mm: f64,
+        frame: &FrameView,
+        inter: &Intermediate,
+        force: bool,
+    ) {
+        let position = inter.edges.position_mm;
+        let (lo, span) = (inter.loc.black, inter.loc.white - inter.loc.black);
+        let near = (position - self.shading_at_mm).abs() <= SHADING_REUSE_MM;
+        if !force && near && self.shading_age < SHADING_REUSE_FRAMES {
+            self.shading_age += 1;
+            for (o, r) in self.white.iter_mut().zip(&self.white_rel) {
+                *o = lo + r * span;
+            }
+            for (o, r) in self.black.iter_mut().zip(&self.black_rel) {
+                *o = lo + r * span;
+            }
+            return;
+        }
+        let ca = self.centre_at(m, reference_position_mm, position);
+        for (rows_u, out) in [
+            (&self.white_u, &mut self.white),
+            (&self.black_u, &mut self.black),
+        ] {
             out.iter_mut().for_each(|v| *v = 0.0);
             for &u in rows_u.iter() {
-                let lp = st.knots.at(position + u);
-                let (e, r) = (centre(u), lp.radius_px * radius_ratio);
-                for (o, &(_, _, sin_d)) in out.iter_mut().zip(&st.phase_delta) {
+                let lp = self.knots.at(position + u);
+                let (e, r) = (ca.offset(u), lp.radius_px * ca.radius_ratio);
+                for (o, &(_, _, sin_d)) in out.iter_mut().zip(&self.phase_delta) {
                     let (x, y) = lp.offset(0.0, e + r * sin_d);
                     *o += frame.luma_bilinear(x as f32, y as f32) as f64;
                 }
@@ -827,9 +1109,30 @@ impl RodTracker {
                 prev = cur;
             }
         }
-        let min_span = 0.2 * contrast;
+        for (r, o) in self.white_rel.iter_mut().zip(&self.white) {
+            *r = (o - lo) / span;
+        }
+        for (r, o) in self.black_rel.iter_mut().zip(&self.black) {
+            *r = (o - lo) / span;
+        }
+        self.shading_at_mm = position;
+        self.shading_age = 0;
+    }
 
-        let sigma = self.calib.enhanced.phase_sign as f64;
+    /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection:
+    /// (phase in rad, amplitude over a full-contrast square wave's).
+    fn phase(
+        &mut self,
+        m: &Marker,
+        reference_position_mm: f64,
+        frame: &FrameView,
+        inter: &Intermediate,
+    ) -> (f64, f64) {
+        let st = self;
+        let position = inter.edges.position_mm;
+        let ca = st.centre_at(m, reference_position_mm, position);
+        let c0 = m.bit_space_centre_mm(0);
+        let min_span = 0.2 * (inter.loc.white - inter.loc.black);
         // The samples sit at x = R sin(delta) across the rod. If the true apparent radius
         // differs by a factor (1 + eps), sample j really sees the surface angle
         // asin(sin(delta_j) / (1 + eps)); a wrong eps stretches the pattern symmetrically and
@@ -838,13 +1141,12 @@ impl RodTracker {
         // by the matched filter's energy, and the phase uses the best one so far.
         let rows = [-0.25, 0.0, 0.25];
         let n_eps = st.eps_tables.len();
-        st.eps_z.iter_mut().for_each(|z| *z = (0.0, 0.0));
         let mut sum_v = 0.0f64;
         let mut sum_w = 0.0f64;
         for r in rows {
             let u = c0 + r * m.bit_space_mm();
             let lp: LinePoint = st.knots.at(position + u);
-            let (e, rad) = (centre(u), lp.radius_px * radius_ratio);
+            let (e, rad) = (ca.offset(u), lp.radius_px * ca.radius_ratio);
             for (j, &(_, w, sin_d)) in st.phase_delta.iter().enumerate() {
                 let (x, y) = lp.offset(0.0, e + rad * sin_d);
                 let raw = frame.luma_bilinear(x as f32, y as f32) as f64;
@@ -856,46 +1158,72 @@ impl RodTracker {
             }
         }
         let mean = sum_v / sum_w.max(1e-9);
-        for (k, table) in st.eps_tables.iter().enumerate() {
+        let dft = |table: &[(f64, f64, f64)], phase_v: &[f64]| {
             let (mut zr, mut zi) = (0.0f64, 0.0f64);
-            for (&(w, c, s_), &pv) in table.iter().zip(&st.phase_v) {
+            for (&(w, c, s_), &pv) in table.iter().zip(phase_v) {
                 let v = pv - 3.0 * mean;
                 zr += w * v * c;
                 zi += w * v * s_;
             }
-            st.eps_z[k] = (zr, zi);
-        }
-        // Learn: accumulate normalised energies (slowly forgetting), pick the best eps.
-        let e_max = st
-            .eps_z
-            .iter()
-            .map(|z| z.0 * z.0 + z.1 * z.1)
-            .fold(0.0, f64::max);
-        if e_max > 0.0 {
-            for (acc, z) in st.eps_acc.iter_mut().zip(&st.eps_z) {
-                *acc = 0.995 * *acc + (z.0 * z.0 + z.1 * z.1) / e_max;
+            (zr, zi)
+        };
+        // Learn: score the whole grid (while learning, then every 8th frame), accumulate the
+        // normalised energies (slowly forgetting), keep the best eps.
+        if st.frames_seen < EPS_LEARN_FRAMES || st.frames_seen % EPS_RESCORE_EVERY == 0 {
+            for (z, table) in st.eps_z.iter_mut().zip(&st.eps_tables) {
+                *z = dft(table, &st.phase_v);
+            }
+            let e_max = st
+                .eps_z
+                .iter()
+                .map(|z| z.0 * z.0 + z.1 * z.1)
+                .fold(0.0, f64::max);
+            if e_max > 0.0 {
+                let keep = if st.frames_seen < EPS_LEARN_FRAMES {
+                    EPS_FORGET
+                } else {
+                    EPS_FORGET.powi(EPS_RESCORE_EVERY as i32)
+                };
+                for (acc, z) in st.eps_acc.iter_mut().zip(&st.eps_z) {
+                    *acc = keep * *acc + (z.0 * z.0 + z.1 * z.1) / e_max;
+                }
+                st.eps_best = (0..n_eps)
+                    .max_by(|&a, &b| st.eps_acc[a].total_cmp(&st.eps_acc[b]))
+                    .unwrap_or(n_eps / 2);
             }
         }
-        let best = (0..n_eps)
-            .max_by(|&a, &b| st.eps_acc[a].total_cmp(&st.eps_acc[b]))
-            .unwrap_or(n_eps / 2);
-        let (zr, zi) = if st.eps_acc[best] > 0.0 {
-            st.eps_z[best]
-        } else {
-            st.eps_z[n_eps / 2]
-        };
+        let (zr, zi) = dft(&st.eps_tables[st.eps_best], &st.phase_v);
         let (ss, cc) = (zi, zr);
         let phi = ss.atan2(cc);
         let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sum_w.max(1e-9);
         // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
         let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
+        (phi, amp_ratio)
+    }
+
+    /// Step 6: fuses the phase with the Gray code, checks their consistency, and gives the
+    /// status and quality.
+    #[allow(clippy::too_many_arguments)]
+    fn judge(
+        &mut self,
+        m: &Marker,
+        calib: &RodCalibration,
+        inter: &Intermediate,
+        alpha: u32,
+        min_high_margin: f64,
+        phi: f64,
+        amp_ratio: f64,
+    ) -> RodResult {
+        let (ncc, k) = (inter.loc.ncc, inter.loc.k);
+        let edge_std = inter.edges.edge_std_mm;
+        let cell = m.cell_mm();
+        let sigma = calib.enhanced.phase_sign as f64;
         let frac4 = (4.0 * ((-sigma * phi) / TAU).rem_euclid(1.0)
-            + self.calib.enhanced.phase_offset_steps)
+            + calib.enhanced.phase_offset_steps)
             .rem_euclid(4.0);
         let steps = m.steps();
         let theta = fuse_steps(frac4, alpha, steps);
-        let angle =
-            (theta * TAU / steps as f64 - self.calib.enhanced.angle_offset_rad).rem_euclid(TAU);
+        let angle = (theta * TAU / steps as f64 - calib.enhanced.angle_offset_rad).rem_euclid(TAU);
         // 6. Consistency and status.
         let code_dist = {
             let d = (theta - (alpha as f64 + 0.5)).rem_euclid(steps as f64);
@@ -926,10 +1254,10 @@ impl RodTracker {
         let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
         let quality = (q_ncc * q_amp * q_edge * q_code).powf(0.25);
         if status == Status::Ok {
-            st.last_k = Some(k);
+            self.last_k = Some(k);
         }
         RodResult {
-            position_mm: position_out,
+            position_mm: inter.edges.position_out_mm,
             angle_rad: angle,
             quality: if status == Status::Ok {
                 quality
@@ -944,6 +1272,22 @@ impl RodTracker {
             amp_ratio,
             edge_std_mm: edge_std,
         }
+    }
+}
+
+
+/// The learnt centre line, seen from one frame's marker position.
+struct CentreAt {
+    fit: CentreFit,
+    position_mm: f64,
+    reference_position_mm: f64,
+    radius_ratio: f64,
+}
+
+impl CentreAt {
+    /// Offset across the calibrated line at marker `u`, px, relative to the reference pose.
+    fn offset(&self, u: f64) -> f64 {
+        self.fit.at(self.position_mm + u).0 - self.fit.at(self.reference_position_mm + u).0
     }
 }
 

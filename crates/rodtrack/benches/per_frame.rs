@@ -1,21 +1,27 @@
-//! Per-frame processing time: every rod one camera sees in one 1440x1080 Bayer8 frame of the
-//! simulated table, in enhanced and paper mode (criterion).
+//! Per-frame processing time: every rod one camera sees in a 1440x1080 Bayer8 frame of the
+//! simulated table, in enhanced and paper mode (criterion). The frames are a sequence of
+//! gameplay (rods moving and turning at 200 fps), cycled, so that what a tracker learns or
+//! reuses from frame to frame is exercised as in a real run; the per-stage benchmarks run one
+//! stage on one frame.
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode};
+use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode, RodTracker, Stage};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 
+/// Consecutive frames of the sequence.
+const FRAMES: usize = 100;
+
 fn setup() -> (
-    Vec<u8>,
+    Vec<Vec<u8>>,
     CameraCalibration,
     (usize, usize, usize, rodtrack_core::PixelFormat),
 ) {
     let scene = SceneConfig::default();
     let sc = Scenario::by_name("gameplay", &scene, 7)
         .unwrap()
-        .with_frames(50);
+        .with_frames(25 + FRAMES);
     let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast).unwrap();
     let inputs = sim.calibration_inputs(0, 7).unwrap();
     let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
@@ -38,25 +44,36 @@ fn setup() -> (
         opencv_model: None,
         rods,
     };
-    let meta = sim.render(25, 0, &mut buf).unwrap();
+    let mut frames = Vec::new();
+    let mut meta = meta;
+    for f in 25..25 + FRAMES {
+        meta = sim.render(f, 0, &mut buf).unwrap();
+        frames.push(buf.clone());
+    }
     (
-        buf,
+        frames,
         cal,
         (meta.width, meta.height, meta.stride, meta.format),
     )
 }
 
 fn per_frame(c: &mut Criterion) {
-    let (buf, cal, (w, h, stride, fmt)) = setup();
-    let view = FrameView::new(&buf, w, h, stride, fmt).unwrap();
+    let (frames, cal, (w, h, stride, fmt)) = setup();
+    let views: Vec<FrameView> = frames
+        .iter()
+        .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
+        .collect();
     let mut g = c.benchmark_group("per_frame");
     for (name, mode) in [("enhanced", Mode::Enhanced), ("paper", Mode::Paper)] {
         let mut pipe = CameraPipeline::new(&cal, mode).unwrap();
         let mut rows = Vec::with_capacity(16);
+        let mut i = 0;
         g.bench_function(format!("{name}_{}_rods", cal.rods.len()), |b| {
             b.iter(|| {
                 rows.clear();
-                pipe.process(&view, 0, 0.0, &mut rows).unwrap();
+                pipe.process(&views[i % FRAMES], i as u64, 0.0, &mut rows)
+                    .unwrap();
+                i += 1;
                 std::hint::black_box(&rows);
             })
         });
@@ -64,5 +81,37 @@ fn per_frame(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, per_frame);
+/// Each stage of the enhanced mode alone, over every rod of the frame (on the intermediate
+/// results of a full pass over the same frame).
+fn per_stage(c: &mut Criterion) {
+    let (frames, cal, (w, h, stride, fmt)) = setup();
+    let views: Vec<FrameView> = frames
+        .iter()
+        .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
+        .collect();
+    let mut rods: Vec<RodTracker> = cal
+        .rods
+        .iter()
+        .map(|r| RodTracker::new(r, w, h, Mode::Enhanced).unwrap())
+        .collect();
+    for view in &views {
+        for r in &mut rods {
+            r.process(view).unwrap();
+        }
+    }
+    let view = views[FRAMES - 1].clone();
+    let mut g = c.benchmark_group("per_stage");
+    for stage in Stage::ALL {
+        g.bench_function(format!("{}_{}_rods", stage.name(), rods.len()), |b| {
+            b.iter(|| {
+                for r in &mut rods {
+                    assert!(r.run_stage(&view, stage));
+                }
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, per_frame, per_stage);
 criterion_main!(benches);
