@@ -308,7 +308,7 @@ impl<'a> FrameView<'a> {
     /// border, an 8-bit frame is read directly: for Bayer, the bilinear mix of 2x2-block means is
     /// a separable 3x3 of pixels with weights `((1-f)/2, 1/2, f/2)`, 9 reads instead of 16.
     /// Near the border, and for other formats, it falls back to the reference.
-    #[inline]
+    #[inline(always)]
     pub fn luma_bilinear(&self, x: f32, y: f32) -> f32 {
         if !self.format.is_16bit() && x >= 2.0 && y >= 2.0 {
             let (w, h) = (self.width as f32, self.height as f32);
@@ -322,18 +322,17 @@ impl<'a> FrameView<'a> {
                         let fx = gx - i0 as f32;
                         let fy = gy - j0 as f32;
                         let base = j0 * self.stride + i0;
-                        let cx = [(1.0 - fx) * 0.5, 0.5, fx * 0.5];
-                        let cy = [(1.0 - fy) * 0.5, 0.5, fy * 0.5];
-                        let mut acc = 0.0f32;
-                        for (r, wy) in cy.iter().enumerate() {
-                            let row =
-                                &self.data[base + r * self.stride..base + r * self.stride + 3];
-                            acc += wy
-                                * (cx[0] * row[0] as f32
-                                    + cx[1] * row[1] as f32
-                                    + cx[2] * row[2] as f32);
-                        }
-                        return acc;
+                        // Each row: (1-fx)/2 a + b/2 + fx/2 c = (a + b + fx (c - a)) / 2; the
+                        // rows likewise with fy, hence the 1/4.
+                        let row = |o: usize| {
+                            let r = &self.data[o..o + 3];
+                            let (a, b, c) = (r[0] as f32, r[1] as f32, r[2] as f32);
+                            a + b + fx * (c - a)
+                        };
+                        let r0 = row(base);
+                        let r1 = row(base + self.stride);
+                        let r2 = row(base + 2 * self.stride);
+                        return 0.25 * (r0 + r1 + fy * (r2 - r0));
                     }
                     LumaKind::Mono => {
                         let (i0, j0) = (x as usize, y as usize);
@@ -342,14 +341,19 @@ impl<'a> FrameView<'a> {
                         let base = j0 * self.stride + i0;
                         let r0 = &self.data[base..base + 2];
                         let r1 = &self.data[base + self.stride..base + self.stride + 2];
-                        let top = r0[0] as f32 * (1.0 - fx) + r0[1] as f32 * fx;
-                        let bot = r1[0] as f32 * (1.0 - fx) + r1[1] as f32 * fx;
-                        return top * (1.0 - fy) + bot * fy;
+                        let top = r0[0] as f32 + fx * (r0[1] as f32 - r0[0] as f32);
+                        let bot = r1[0] as f32 + fx * (r1[1] as f32 - r1[0] as f32);
+                        return top + fy * (bot - top);
                     }
                     LumaKind::Rgb => {}
                 }
             }
         }
+        self.luma_bilinear_slow(x, y)
+    }
+
+    #[inline(never)]
+    fn luma_bilinear_slow(&self, x: f32, y: f32) -> f32 {
         self.luma_bilinear_reference(x, y)
     }
 

@@ -899,10 +899,20 @@ impl EnhancedState {
             // middle until the crossing, which is then usually one of the first two pairs.
             let bias = st.edge_bias_mm;
             let s_e = pos0 + bias + u_e;
-            let knots = &st.knots;
+            // Along the tangent at the edge: the line's knots are straight segments, and the
+            // profile spans one cell, so this is the line itself to far below a pixel.
+            let lp = st.knots.at(s_e);
+            let (dx, dy) = (
+                (lp.tx * lp.px_per_mm * dstep) as f32,
+                (lp.ty * lp.px_per_mm * dstep) as f32,
+            );
+            let (x0, y0) = (
+                (lp.x - lp.tx * lp.px_per_mm * half) as f32,
+                (lp.y - lp.ty * lp.px_per_mm * half) as f32,
+            );
             let sample = |i: usize| {
-                let p = knots.at(s_e - half + i as f64 * dstep);
-                frame.luma_bilinear(p.x as f32, p.y as f32)
+                let t = i as f32;
+                frame.luma_bilinear(x0 + t * dx, y0 + t * dy)
             };
             st.profile.fill(f32::NAN);
             st.profile[0] = sample(0);

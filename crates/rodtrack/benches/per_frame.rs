@@ -101,6 +101,19 @@ fn per_stage(c: &mut Criterion) {
     }
     let view = views[FRAMES - 1].clone();
     let mut g = c.benchmark_group("per_stage");
+    // Touching every rod's region of a new (cold) frame: what the memory costs.
+    let mut i = 0;
+    g.bench_function(format!("touch_cold_{}_rods", rods.len()), |b| {
+        b.iter(|| {
+            let v = &views[i % FRAMES];
+            i += 1;
+            let mut t = 0u8;
+            for r in &rods {
+                t ^= r.prefetch(v);
+            }
+            std::hint::black_box(t)
+        })
+    });
     for stage in Stage::ALL {
         g.bench_function(format!("{}_{}_rods", stage.name(), rods.len()), |b| {
             b.iter(|| {
