@@ -271,6 +271,44 @@ impl<'a> FrameView<'a> {
         }
     }
 
+    /// [`FrameView::luma_node`] for many nodes at once (the format is dispatched once); `None`
+    /// reads as 0.
+    pub fn luma_nodes(&self, nodes: &[Option<(isize, isize)>], out: &mut [f32]) {
+        let (w, h) = (self.width as isize, self.height as isize);
+        match (self.format.luma_kind(), self.format.is_16bit()) {
+            (LumaKind::Bayer, false) => {
+                for (v, n) in out.iter_mut().zip(nodes) {
+                    *v = match *n {
+                        Some((i, j)) if i >= 0 && j >= 0 && i < w - 1 && j < h - 1 => {
+                            let o = j as usize * self.stride + i as usize;
+                            let (r0, r1) = (&self.data[o..o + 2], &self.data[o + self.stride..]);
+                            (r0[0] as u32 + r0[1] as u32 + r1[0] as u32 + r1[1] as u32) as f32
+                                * 0.25
+                        }
+                        Some((i, j)) => self.luma_node(i, j),
+                        None => 0.0,
+                    };
+                }
+            }
+            (LumaKind::Mono, false) => {
+                for (v, n) in out.iter_mut().zip(nodes) {
+                    *v = match *n {
+                        Some((i, j)) if i >= 0 && j >= 0 && i < w && j < h => {
+                            self.data[j as usize * self.stride + i as usize] as f32
+                        }
+                        Some((i, j)) => self.luma_node(i, j),
+                        None => 0.0,
+                    };
+                }
+            }
+            _ => {
+                for (v, n) in out.iter_mut().zip(nodes) {
+                    *v = n.map_or(0.0, |(i, j)| self.luma_node(i, j));
+                }
+            }
+        }
+    }
+
     /// Offset of luma grid node coordinates from pixel coordinates: 0.5 for Bayer (a node is a
     /// 2x2 block), 0 otherwise.
     pub fn node_offset(&self) -> f32 {
@@ -472,6 +510,47 @@ mod tests {
                 let a = f.luma_bilinear(x, y);
                 let b = f.luma_bilinear_reference(x, y);
                 proptest::prop_assert!((a - b).abs() < 1e-3, "{fmt}: {a} vs {b} at ({x}, {y})");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// The batch node reader equals the plain node reader, for every format, nodes inside,
+        /// on and beyond the border (clamped), and `None`.
+        #[test]
+        fn luma_nodes_equal_luma_node(
+            nodes in proptest::collection::vec(
+                proptest::option::of((-3isize..42, -3isize..32)), 1..40),
+            seed in 0u64..1000,
+        ) {
+            let (w, h, pad) = (37usize, 27usize, 3usize);
+            for fmt in PixelFormat::ALL {
+                let stride = w * fmt.bytes_per_pixel() + pad;
+                let data: Vec<u8> = (0..stride * h)
+                    .map(|i| (seed as usize * 7919 + i * 2654435761) as u8)
+                    .collect();
+                let f = FrameView::new(&data, w, h, stride, fmt).unwrap();
+                let mut out = vec![f32::NAN; nodes.len()];
+                f.luma_nodes(&nodes, &mut out);
+                for (n, v) in nodes.iter().zip(&out) {
+                    let want = n.map_or(0.0, |(i, j)| f.luma_node(i, j));
+                    proptest::prop_assert!((v - want).abs() < 1e-4, "{fmt}: {v} vs {want} at {n:?}");
+                }
+            }
+        }
+
+        /// Touching a rectangle never reads outside the frame, whatever the rectangle.
+        #[test]
+        fn touch_rect_stays_inside(
+            x0 in -1e4f64..1e4, y0 in -1e4f64..1e4, x1 in -1e4f64..1e4, y1 in -1e4f64..1e4,
+        ) {
+            let (w, h) = (37usize, 27usize);
+            for fmt in PixelFormat::ALL {
+                let stride = w * fmt.bytes_per_pixel();
+                let data = vec![1u8; stride * h];
+                let f = FrameView::new(&data, w, h, stride, fmt).unwrap();
+                let _ = f.touch_rect(x0, y0, x1, y1);
+                let _ = f.touch_rect(f64::NAN, y0, f64::INFINITY, y1);
             }
         }
     }

@@ -1324,12 +1324,7 @@ fn coarse_search(
         }
         st.coarse_grid_offset = node_off;
     }
-    for (v, g) in st.coarse[lo..end].iter_mut().zip(&st.coarse_grid[lo..end]) {
-        *v = match *g {
-            Some((i, j)) => frame.luma_node(i, j),
-            None => 0.0,
-        };
-    }
+    frame.luma_nodes(&st.coarse_grid[lo..end], &mut st.coarse[lo..end]);
     let len = end - lo;
     prefix_sums(
         &st.coarse[lo..end],
