@@ -1151,21 +1151,28 @@ impl EnhancedState {
         // by the matched filter's energy, and the phase uses the best one so far.
         let rows = [-0.25, 0.0, 0.25];
         let n_eps = st.eps_tables.len();
-        let mut sum_v = 0.0f64;
-        let mut sum_w = 0.0f64;
+        // The rows' raw samples summed per angle, then normalised to the print's own white (1)
+        // and black (0) at that angle.
+        st.phase_v.fill(0.0);
         for r in rows {
             let u = c0 + r * m.bit_space_mm();
             let lp: LinePoint = st.knots.at(position + u);
             let (e, rad) = (ca.offset(u), lp.radius_px * ca.radius_ratio);
-            for (j, &(_, w, sin_d)) in st.phase_delta.iter().enumerate() {
-                let (x, y) = lp.offset(0.0, e + rad * sin_d);
-                let raw = frame.luma_bilinear(x as f32, y as f32) as f64;
-                // Normalised to the print's own white (1) and black (0) at this angle.
-                let v = (raw - st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
-                st.phase_v[j] = if r == rows[0] { v } else { st.phase_v[j] + v };
-                sum_v += w * v;
-                sum_w += w;
+            let (xb, yb) = lp.offset(0.0, e);
+            let (xb, yb) = (xb as f32, yb as f32);
+            let (sx, sy) = ((-lp.ty * rad) as f32, (lp.tx * rad) as f32);
+            for (acc, &(_, _, sin_d)) in st.phase_v.iter_mut().zip(&st.phase_delta) {
+                let sd = sin_d as f32;
+                *acc += frame.luma_bilinear(xb + sx * sd, yb + sy * sd) as f64;
             }
+        }
+        let n_rows = rows.len() as f64;
+        let (mut sum_v, mut sum_w) = (0.0f64, 0.0f64);
+        for (j, (pv, &(_, w, _))) in st.phase_v.iter_mut().zip(&st.phase_delta).enumerate() {
+            let v = (*pv - n_rows * st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
+            *pv = v;
+            sum_v += w * v;
+            sum_w += n_rows * w;
         }
         let mean = sum_v / sum_w.max(1e-9);
         let dft = |table: &[(f64, f64, f64)], phase_v: &[f64]| {
