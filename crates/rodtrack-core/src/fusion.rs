@@ -125,15 +125,16 @@ pub struct Fuser {
 }
 
 impl Fuser {
-    /// A fuser with empty scratch buffers.
+    /// A fuser with scratch buffers sized for a table of cameras and rods (they grow, once,
+    /// if a network needs more), so that fusing allocates nothing per frame.
     pub fn new(cfg: FusionConfig) -> Fuser {
         Fuser {
             cfg,
-            rows: Vec::new(),
-            clocks: Vec::new(),
-            fused: Vec::new(),
-            disagreements: Vec::new(),
-            out_of_sync: Vec::new(),
+            rows: Vec::with_capacity(256),
+            clocks: Vec::with_capacity(MAX_ROWS_PER_ROD),
+            fused: Vec::with_capacity(64),
+            disagreements: Vec::with_capacity(256),
+            out_of_sync: Vec::with_capacity(MAX_ROWS_PER_ROD),
         }
     }
 
