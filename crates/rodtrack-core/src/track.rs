@@ -69,8 +69,12 @@ pub struct RodResult {
 const SEARCH_MARGIN_MM: f64 = 10.0;
 /// Fine-profile half length around an edge, in cells.
 const EDGE_HALF_CELLS: f64 = 0.5;
-/// Half width of the search window around the last frame's marker, mm.
-const SEARCH_WINDOW_MM: f64 = 20.0;
+/// Half width of the search window around where the marker is expected (the last frame's
+/// position plus its motion), mm: a change of speed of 2.4 m/s from one frame to the next at
+/// 200 fps. Beyond it, the whole travel is searched.
+const SEARCH_WINDOW_MM: f64 = 12.0;
+/// Largest motion from one frame to the next taken as motion (not a jump), mm.
+const MAX_MOTION_MM: f64 = 40.0;
 /// Fine-profile samples per cell.
 const EDGE_SAMPLES_PER_CELL: usize = 10;
 /// Frames over which the radius correction `eps` is scored every frame; then every
@@ -81,7 +85,13 @@ const EPS_RESCORE_EVERY: u64 = 8;
 const EPS_FORGET: f64 = 0.995;
 /// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
 /// across it in radii).
-const GRAY_SAMPLES: [(f64, f64); 5] = [(0.0, 0.0), (-0.2, 0.0), (0.2, 0.0), (0.0, -0.15), (0.0, 0.15)];
+const GRAY_SAMPLES: [(f64, f64); 5] = [
+    (0.0, 0.0),
+    (-0.2, 0.0),
+    (0.2, 0.0),
+    (0.0, -0.15),
+    (0.0, 0.15),
+];
 /// How far the marker may move from where the print's shading was measured before it is
 /// measured again, mm.
 const SHADING_REUSE_MM: f64 = 5.0;
@@ -642,7 +652,7 @@ impl RodTracker {
         };
         let p = edges.position_mm;
         st.predicted_mm = Some(match last_mm {
-            Some(l) if (p - l).abs() < SEARCH_WINDOW_MM => 2.0 * p - l,
+            Some(l) if (p - l).abs() < MAX_MOTION_MM => 2.0 * p - l,
             _ => p,
         });
         st.frames_seen = st.frames_seen.wrapping_add(1);
@@ -682,7 +692,9 @@ impl RodTracker {
         let n = ((b - a) / 8.0).ceil().max(1.0) as usize;
         for i in 0..=n {
             let lp = st.knots.at(a + (b - a) * i as f64 / n as f64);
-            let r = 1.5 * lp.radius_px + 3.0;
+            // The phase, shading and Gray samples lie within the radius, plus the bilinear
+            // footprint; the rings' silhouettes (1.5 R) are read on few frames.
+            let r = lp.radius_px + 3.0;
             for side in [-r, r] {
                 let (x, y) = lp.offset(0.0, side);
                 x0 = x0.min(x);
@@ -810,7 +822,11 @@ impl EnhancedState {
         let n_cand = st.corr.len();
         let window = (SEARCH_WINDOW_MM / st.coarse_step).ceil() as usize;
         let mut found = None;
-        if let Some(k0) = st.last_k {
+        if let (Some(_), Some(p)) = (st.last_k, st.predicted_mm) {
+            // Around where the last frame's motion says the marker is now.
+            let k0 = ((p + m.barcode_start_mm() - st.coarse_s0) / st.coarse_step)
+                .round()
+                .clamp(0.0, (n_cand - 1) as f64) as usize;
             let (lo, hi) = (k0.saturating_sub(window), (k0 + window).min(n_cand - 1));
             if let Some((k, c, sub)) = coarse_search(st, frame, node_off, lo, hi) {
                 let inside = (k > lo || lo == 0) && (k < hi || hi == n_cand - 1);
@@ -1033,10 +1049,7 @@ impl EnhancedState {
             fit: self.centre,
             position_mm,
             reference_position_mm,
-            radius_ratio: self
-                .centre
-                .at(position_mm + m.bit_space_centre_mm(0))
-                .1,
+            radius_ratio: self.centre.at(position_mm + m.bit_space_centre_mm(0)).1,
         }
     }
 
@@ -1291,7 +1304,6 @@ impl EnhancedState {
         }
     }
 }
-
 
 /// The learnt centre line, seen from one frame's marker position.
 struct CentreAt {

@@ -13,11 +13,10 @@ use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulatio
 /// Consecutive frames of the sequence.
 const FRAMES: usize = 100;
 
-fn setup() -> (
-    Vec<Vec<u8>>,
-    CameraCalibration,
-    (usize, usize, usize, rodtrack_core::PixelFormat),
-) {
+/// Frame width, height, stride and pixel format.
+type Geometry = (usize, usize, usize, rodtrack_core::PixelFormat);
+
+fn setup() -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
     let scene = SceneConfig::default();
     let sc = Scenario::by_name("gameplay", &scene, 7)
         .unwrap()
@@ -99,7 +98,7 @@ fn per_stage(c: &mut Criterion) {
             r.process(view).unwrap();
         }
     }
-    let view = views[FRAMES - 1].clone();
+    let view = views[FRAMES - 1];
     let mut g = c.benchmark_group("per_stage");
     // Touching every rod's region of a new (cold) frame: what the memory costs.
     let mut i = 0;

@@ -40,6 +40,9 @@ pub struct ModeTiming {
     pub p90_us: f64,
     /// Rows reported ok per frame, on average.
     pub ok_rows_per_frame: f64,
+    /// Median of the thread's CPU time per frame, us: unlike the wall time, it leaves out the
+    /// time the thread waited for a core on a loaded machine.
+    pub cpu_median_us: f64,
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -62,16 +65,20 @@ fn time_mode(
     let mut rows: Vec<Measurement> = Vec::with_capacity(cal.rods.len());
     let mut times = Vec::with_capacity(views.len() * repeat);
     let mut ok = 0usize;
+    let mut cpu_times = Vec::with_capacity(views.len() * repeat);
     // One warm-up pass (caches, lazily built tables), then the timed passes.
     for pass in 0..=repeat {
         for (i, v) in views.iter().enumerate() {
             rows.clear();
+            let cpu = cpu_time::ThreadTime::now();
             let t = Instant::now();
             pipe.process(v, i as u64, i as f64 / cal.fps, &mut rows)?;
             let us = t.elapsed().as_secs_f64() * 1e6;
+            let cpu_us = cpu.elapsed().as_secs_f64() * 1e6;
             std::hint::black_box(&rows);
             if pass > 0 {
                 times.push(us);
+                cpu_times.push(cpu_us);
                 ok += rows
                     .iter()
                     .filter(|m| m.status == rodtrack_core::Status::Ok)
@@ -80,11 +87,14 @@ fn time_mode(
         }
     }
     times.sort_by(|a, b| a.total_cmp(b));
+    cpu_times.sort_by(|a, b| a.total_cmp(b));
+    let cpu_median_us = percentile(&cpu_times, 0.5);
     Ok(ModeTiming {
         median_us: percentile(&times, 0.5),
         p10_us: percentile(&times, 0.1),
         p90_us: percentile(&times, 0.9),
         ok_rows_per_frame: ok as f64 / times.len().max(1) as f64,
+        cpu_median_us,
     })
 }
 
