@@ -320,6 +320,39 @@ impl CurveModel {
         }
     }
 
+    /// The same path moved sideways by `a + b (lambda - lambda_c)`: in normalised units along
+    /// the line's normal for a camera model (the line turns about `lambda_c`), in px along the
+    /// polynomial's value for a polynomial. `lambda` keeps its meaning along the path (to first
+    /// order), so positions measured along the old path stay valid.
+    pub fn shifted(&self, a: f64, b: f64, lambda_c: f64) -> CurveModel {
+        match self {
+            CurveModel::Camera { intrinsics, n0, d } => {
+                let p = [-d[1], d[0]];
+                let c = a - b * lambda_c;
+                let nd = [d[0] + b * p[0], d[1] + b * p[1]];
+                let len = nd[0].hypot(nd[1]);
+                CurveModel::Camera {
+                    intrinsics: *intrinsics,
+                    n0: [n0[0] + c * p[0], n0[1] + c * p[1]],
+                    d: [nd[0] / len, nd[1] / len],
+                }
+            }
+            CurveModel::Poly { coeffs, along_x } => {
+                let mut coeffs = coeffs.clone();
+                coeffs[0] += a - b * lambda_c;
+                if coeffs.len() > 1 {
+                    coeffs[1] += b;
+                } else {
+                    coeffs.push(b);
+                }
+                CurveModel::Poly {
+                    coeffs,
+                    along_x: *along_x,
+                }
+            }
+        }
+    }
+
     /// A short name for reports.
     pub fn kind(&self) -> &'static str {
         match self {

@@ -145,6 +145,10 @@ struct EnhancedState {
     phase_delta: Vec<(f64, f64, f64)>,
     /// Per radius correction `eps`: (weight, cos, sin) of `cycles * asin(sin(delta) / (1 + eps))`.
     eps_tables: Vec<Vec<(f64, f64, f64)>>,
+    /// Per `eps`: the inverse of the weighted normal matrix of the fit `v = m + a cos + b sin`
+    /// over the samples (the samples need not hold whole periods, nor be evenly spread in the
+    /// print's angle, for the fit to keep the phase unbiased).
+    eps_ginv: Vec<[[f64; 3]; 3]>,
     /// Matched-filter energy per `eps`, accumulated over frames.
     eps_acc: Vec<f64>,
     /// This frame's DFT per `eps` (scratch).
@@ -453,6 +457,7 @@ impl RodTracker {
                     .collect()
             })
             .collect();
+        let eps_ginv: Vec<[[f64; 3]; 3]> = eps_tables.iter().map(|t| normal_inverse(t)).collect();
         // Rows across the middle of the longest white and black runs of the barcode: the print's
         // shading across the rod (the light is fixed in the world, so it depends on the angle
         // from the facing line, not on the rod's angle) is measured there every frame.
@@ -516,6 +521,7 @@ impl RodTracker {
             scale: ScaleFit::default(),
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             eps_tables,
+            eps_ginv,
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
             eps_best: eps_values.len() / 2,
@@ -1180,28 +1186,33 @@ impl EnhancedState {
             }
         }
         let n_rows = rows.len() as f64;
-        let (mut sum_v, mut sum_w) = (0.0f64, 0.0f64);
-        for (j, (pv, &(_, w, _))) in st.phase_v.iter_mut().zip(&st.phase_delta).enumerate() {
-            let v = (*pv - n_rows * st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
-            *pv = v;
-            sum_v += w * v;
-            sum_w += n_rows * w;
+        for (j, pv) in st.phase_v.iter_mut().enumerate() {
+            *pv = (*pv - n_rows * st.black[j]) / (st.white[j] - st.black[j]).max(min_span);
         }
-        let mean = sum_v / sum_w.max(1e-9);
-        let dft = |table: &[(f64, f64, f64)], phase_v: &[f64]| {
-            let (mut zr, mut zi) = (0.0f64, 0.0f64);
+        // Weighted least squares of `v = m + a cos + b sin` (the stripes' fundamental): its
+        // energy scores eps, its phase is the measurement.
+        let fit = |table: &[(f64, f64, f64)], gi: &[[f64; 3]; 3], phase_v: &[f64]| {
+            let mut r = [0.0f64; 3];
+            let mut sw = 0.0f64;
             for (&(w, c, s_), &pv) in table.iter().zip(phase_v) {
-                let v = pv - 3.0 * mean;
-                zr += w * v * c;
-                zi += w * v * s_;
+                let wv = w * pv;
+                sw += w;
+                r[0] += wv;
+                r[1] += wv * c;
+                r[2] += wv * s_;
             }
-            (zr, zi)
+            let x: [f64; 3] =
+                std::array::from_fn(|i| gi[i][0] * r[0] + gi[i][1] * r[1] + gi[i][2] * r[2]);
+            // Energy explained by the fundamental beyond the constant.
+            let energy = x[0] * r[0] + x[1] * r[1] + x[2] * r[2] - r[0] * r[0] / sw.max(1e-12);
+            (x[1], x[2], energy)
         };
         // Learn: score the whole grid (while learning, then every 8th frame), accumulate the
         // normalised energies (slowly forgetting), keep the best eps.
         if st.frames_seen < EPS_LEARN_FRAMES || st.frames_seen % EPS_RESCORE_EVERY == 0 {
-            for (z, table) in st.eps_z.iter_mut().zip(&st.eps_tables) {
-                *z = dft(table, &st.phase_v);
+            for ((z, table), gi) in st.eps_z.iter_mut().zip(&st.eps_tables).zip(&st.eps_ginv) {
+                let (_, _, e) = fit(table, gi, &st.phase_v);
+                *z = (e.max(0.0).sqrt(), 0.0);
             }
             let e_max = st
                 .eps_z
@@ -1222,10 +1233,14 @@ impl EnhancedState {
                     .unwrap_or(n_eps / 2);
             }
         }
-        let (zr, zi) = dft(&st.eps_tables[st.eps_best], &st.phase_v);
-        let (ss, cc) = (zi, zr);
-        let phi = ss.atan2(cc);
-        let amplitude = 2.0 * (ss * ss + cc * cc).sqrt() / sum_w.max(1e-9);
+        let (a, b, _) = fit(
+            &st.eps_tables[st.eps_best],
+            &st.eps_ginv[st.eps_best],
+            &st.phase_v,
+        );
+        let phi = b.atan2(a);
+        // Per row (phase_v sums the rows).
+        let amplitude = (a * a + b * b).sqrt() / rows.len() as f64;
         // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
         let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
         (phi, amp_ratio)
@@ -1458,4 +1473,32 @@ pub fn fuse_steps(frac4: f64, alpha: u32, steps: u32) -> f64 {
     let d = frac4 + alpha_p - alpha as f64;
     let j = (-d / 4.0).round();
     (frac4 + alpha_p + 4.0 * j).rem_euclid(steps as f64)
+}
+
+/// The inverse of the weighted normal matrix `sum w [1 c s]^T [1 c s]` of a phase table.
+fn normal_inverse(table: &[(f64, f64, f64)]) -> [[f64; 3]; 3] {
+    let mut g = [[0.0f64; 3]; 3];
+    for &(w, c, s) in table {
+        let x = [1.0, c, s];
+        for i in 0..3 {
+            for j in 0..3 {
+                g[i][j] += w * x[i] * x[j];
+            }
+        }
+    }
+    let det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1])
+        - g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0])
+        + g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);
+    let mut inv = [[0.0f64; 3]; 3];
+    if det.abs() < 1e-300 {
+        return inv;
+    }
+    for (i, row) in inv.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            let (a0, a1) = ((j + 1) % 3, (j + 2) % 3);
+            let (b0, b1) = ((i + 1) % 3, (i + 2) % 3);
+            *v = (g[a0][b0] * g[a1][b1] - g[a0][b1] * g[a1][b0]) / det;
+        }
+    }
+    inv
 }

@@ -8,7 +8,7 @@ use super::file::{EnhancedParams, PaperParams, Residuals, RodCalibration};
 use super::inputs::RodInputs;
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
-use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
+use crate::line::{fit_line_tls, CurveModel, Knots, LinePoint, PaperLine};
 use crate::marker::{gray_decode, Marker};
 use crate::signal::{hysteresis, ncc_direct, paper_bandpass, PAPER_HYSTERESIS};
 use crate::track::{Mode, RodTracker};
@@ -19,6 +19,8 @@ use std::f64::consts::TAU;
 const KNOT_STEP_MM: f64 = 2.0;
 /// Knots extend this far beyond the marker's travel, mm.
 const KNOT_MARGIN_MM: f64 = 15.0;
+/// Assumed error of a clicked path point, px (the silhouettes are weighted against it).
+const CLICK_SIGMA_PX: f64 = 1.0;
 /// Default view angle for the paper's eq. (1) when no camera model is given, degrees.
 pub const DEFAULT_VIEW_ANGLE_DEG: f64 = 53.2;
 
@@ -244,57 +246,108 @@ pub fn calibrate_rod(
     let s_ref = inputs.reference.position_mm;
     let lambda_of_s = |s: f64| l0 + g * (s - s_ref);
 
-    // Knots.
+    // Knots of a path: centre and apparent radius every 2 mm along the axis.
     let s0 = inputs.travel_mm[0] - KNOT_MARGIN_MM;
     let s1 = inputs.travel_mm[1] + marker.length_mm() + KNOT_MARGIN_MM;
     let nk = ((s1 - s0) / KNOT_STEP_MM).ceil() as usize + 1;
-    let mut kx = Vec::with_capacity(nk);
-    let mut ky = Vec::with_capacity(nk);
-    let mut kr = Vec::with_capacity(nk);
-    for i in 0..nk {
-        let s = s0 + i as f64 * KNOT_STEP_MM;
-        let (x, y) = curve.point(lambda_of_s(s));
-        let (x2, y2) = curve.point(lambda_of_s(s + 0.5));
-        let ppm = ((x2 - x).powi(2) + (y2 - y).powi(2)).sqrt() / 0.5;
-        kx.push(x);
-        ky.push(y);
-        kr.push(marker.radius_mm() * ppm);
-    }
-    let mut knots = Knots {
-        s0_mm: s0,
-        step_mm: KNOT_STEP_MM,
-        x_px: kx,
-        y_px: ky,
-        radius_px: kr,
+    let make_knots = |curve: &CurveModel, radius_ratio: f64| {
+        let mut kx = Vec::with_capacity(nk);
+        let mut ky = Vec::with_capacity(nk);
+        let mut kr = Vec::with_capacity(nk);
+        for i in 0..nk {
+            let s = s0 + i as f64 * KNOT_STEP_MM;
+            let (x, y) = curve.point(lambda_of_s(s));
+            let (x2, y2) = curve.point(lambda_of_s(s + 0.5));
+            let ppm = ((x2 - x).powi(2) + (y2 - y).powi(2)).sqrt() / 0.5;
+            kx.push(x);
+            ky.push(y);
+            kr.push(marker.radius_mm() * ppm * radius_ratio);
+        }
+        Knots {
+            s0_mm: s0,
+            step_mm: KNOT_STEP_MM,
+            x_px: kx,
+            y_px: ky,
+            radius_px: kr,
+        }
     };
 
-    // The rod's centre and apparent radius at the marker, from the silhouettes of its white
-    // rings in the reference frame: a constant lateral correction of the line (the clicks'
-    // offset) and the radius ratio. The tracker repeats this measurement every frame.
-    let mut offs = Vec::new();
-    let mut ratios = Vec::new();
-    for u in crate::track::ring_rows(&marker) {
-        let lp = knots.at(s_ref + u);
-        if let Some((c, hw)) = crate::track::ring_silhouette(frame, &lp) {
-            offs.push(c);
-            ratios.push(hw / lp.radius_px);
+    // The rod's centre line and apparent radius from the silhouettes of the marker's rings
+    // along its whole length in the reference frame (rows every half mm over about 100 mm),
+    // combined with the clicked points by least squares: a correction of the path's offset and
+    // direction. The phase needs the centre to a few hundredths of a pixel wherever the marker
+    // goes (a centre off by `e` px across a rod of apparent radius `R` px turns the angle by
+    // about `e / R`), which a few clicks of about 1 px cannot give.
+    let mut radius_ratio = 1.0;
+    let mut silhouette = None;
+    for _ in 0..5 {
+        let knots = make_knots(&curve, 1.0);
+        let Some(fit) = fit_silhouette(frame, &knots, &marker, s_ref) else {
+            break;
+        };
+        radius_ratio = fit.radius_ratio;
+        let lam_c = lambda_of_s(fit.s_mean_mm);
+        // Observations: lateral offset (px, along the knots' normal) at lambda, and weight.
+        let mut obs: Vec<(f64, f64, f64)> = fit
+            .rows
+            .iter()
+            .map(|&(s, c)| (lambda_of_s(s), c, fit.weight))
+            .collect();
+        for p in &used {
+            let lam = curve.project(*p);
+            let (x, y) = curve.point(lam);
+            let lp = knots.at(s_ref + (lam - l0) / g);
+            let off = (p[0] - x) * -lp.ty + (p[1] - y) * lp.tx;
+            obs.push((lam, off, 1.0 / (CLICK_SIGMA_PX * CLICK_SIGMA_PX)));
+        }
+        let lam_span = obs
+            .iter()
+            .map(|o| (o.0 - lam_c).abs())
+            .fold(0.0, f64::max)
+            .max(1e-9);
+        let ha = curve.lambda_per_px(lam_c);
+        let hb = ha / lam_span;
+        let ca = curve.shifted(ha, 0.0, lam_c);
+        let cb = curve.shifted(0.0, hb, lam_c);
+        let (mut m00, mut m01, mut m11, mut r0, mut r1) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(lam, off, w) in &obs {
+            let (x, y) = curve.point(lam);
+            let lp = knots.at(s_ref + (lam - l0) / g);
+            let (nx, ny) = (-lp.ty, lp.tx);
+            let pa = ca.point(lam);
+            let pb = cb.point(lam);
+            let ga = (pa.0 - x) * nx + (pa.1 - y) * ny;
+            let gb = (pb.0 - x) * nx + (pb.1 - y) * ny;
+            m00 += w * ga * ga;
+            m01 += w * ga * gb;
+            m11 += w * gb * gb;
+            r0 += w * ga * off;
+            r1 += w * gb * off;
+        }
+        let det = m00 * m11 - m01 * m01;
+        if det.is_nan() || det.abs() <= 1e-12 * (m00 * m11).max(1e-300) {
+            break;
+        }
+        let a = (m11 * r0 - m01 * r1) / det;
+        let b = (m00 * r1 - m01 * r0) / det;
+        curve = curve.shifted(a * ha, b * hb, lam_c);
+        silhouette = Some(fit);
+        if a.abs().max(b.abs()) < 0.005 {
+            break;
         }
     }
-    let mut radius_ratio = 1.0;
-    if offs.len() >= 2 {
-        let a = offs.iter().sum::<f64>() / offs.len() as f64;
-        radius_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
-        for i in 0..knots.len() {
-            let s = knots.s0_mm + i as f64 * knots.step_mm;
-            let lp = knots.at(s);
-            knots.x_px[i] += -lp.ty * a;
-            knots.y_px[i] += lp.tx * a;
-            knots.radius_px[i] *= radius_ratio;
-        }
-    } else {
+    let knots = make_knots(&curve, radius_ratio);
+    if let Some(f) = silhouette.as_ref().filter(|f| f.rms_px > 0.3) {
+        warnings.push(format!(
+            "the rod's silhouette along the marker scatters by {:.2} px around a line: check \
+             the reference frame",
+            f.rms_px
+        ));
+    }
+    if silhouette.is_none() {
         warnings.push(
-            "the marker's white rings do not stand out from the background: centre line and \
-             radius not refined"
+            "the marker's rings do not stand out from the background: centre line and radius \
+             not refined"
                 .to_string(),
         );
     }
@@ -604,4 +657,229 @@ fn paper_params(
         (r1.theta_steps * TAU / marker.steps() as f64 - cal.reference_angle_rad).rem_euclid(TAU);
     let _ = fit_line_tls;
     Ok(p)
+}
+
+/// The rod's silhouette along the marker in the reference frame.
+struct SilhouetteFit {
+    /// `(s, lateral offset)` of every kept row, px along the knots' normal, both polarities
+    /// brought to one centre.
+    rows: Vec<(f64, f64)>,
+    /// Least-squares weight of one row (1 / px^2, thinned for rows closer than a pixel).
+    weight: f64,
+    /// Mean `s` of the rows, mm.
+    s_mean_mm: f64,
+    /// RMS of the rows around their line, px.
+    rms_px: f64,
+    /// Apparent radius over the knots' predicted one.
+    radius_ratio: f64,
+}
+
+/// Rows across the marker's full rings (white: quiet zones, the barcode's white cells, the gap;
+/// black: the barcode's black cells), `margin_mm` inside their ends, every `step_mm`: `(u,
+/// white)`.
+fn ring_rows_all(marker: &Marker, margin_mm: f64, step_mm: f64) -> Vec<(f64, bool)> {
+    let mut zones: Vec<(f64, f64, bool)> = Vec::new();
+    let bc0 = marker.barcode_start_mm();
+    let cell = marker.cell_mm();
+    zones.push((0.0, bc0, true));
+    let k = marker.kernel();
+    let mut i = 0;
+    while i < k.len() {
+        let j = (i..k.len()).find(|&j| k[j] != k[i]).unwrap_or(k.len());
+        zones.push((bc0 + i as f64 * cell, bc0 + j as f64 * cell, !k[i]));
+        i = j;
+    }
+    let gray_end = marker.gray_start_mm() + marker.bits() as f64 * marker.bit_space_mm();
+    zones.push((bc0 + marker.barcode_len_mm(), marker.gray_start_mm(), true));
+    zones.push((gray_end, marker.length_mm(), true));
+    let mut rows = Vec::new();
+    for (a, b, white) in zones {
+        let (a, b) = (a + margin_mm, b - margin_mm);
+        if b < a {
+            continue;
+        }
+        let n = ((b - a) / step_mm).floor() as usize;
+        let off = 0.5 * (b - a - n as f64 * step_mm);
+        for q in 0..=n {
+            rows.push((a + off + q as f64 * step_mm, white));
+        }
+    }
+    rows
+}
+
+/// The silhouette of a full ring across the rod at `lp`, bright (white print) or dark (black
+/// print) against the background: (centre offset along the normal, half width), px. Each
+/// edge is where the profile crosses halfway between the print inside and the background
+/// outside.
+fn ring_silhouette_any(frame: &FrameView, lp: &LinePoint, bright: bool) -> Option<(f64, f64)> {
+    let r = lp.radius_px;
+    let step = 0.25;
+    let sign = if bright { 1.0 } else { -1.0 };
+    let at = |x: f64| {
+        let (px, py) = lp.offset(0.0, x);
+        sign * frame.luma_bilinear(px as f32, py as f32) as f64
+    };
+    let mut edge = [0.0f64; 2];
+    for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
+        let x_out = side * 1.5 * r;
+        if !frame.contains(
+            (lp.x - lp.ty * x_out) as f32,
+            (lp.y + lp.tx * x_out) as f32,
+            1.0,
+        ) {
+            return None;
+        }
+        let inside = at(side * 0.6 * r);
+        let outside = at(x_out);
+        if inside - outside < 12.0 {
+            return None;
+        }
+        let level = 0.5 * (inside + outside);
+        let x_from = side * 0.7 * r;
+        let n = ((0.7 * r) / step) as usize;
+        let mut prev = (x_from, at(x_from));
+        if prev.1 < level {
+            return None;
+        }
+        let mut found = None;
+        for i in 1..=n {
+            let x = x_from + side * step * i as f64;
+            let v = at(x);
+            if prev.1 >= level && v < level {
+                let f = (prev.1 - level) / (prev.1 - v);
+                found = Some(prev.0 + f * (x - prev.0));
+                break;
+            }
+            prev = (x, v);
+        }
+        edge[k] = found?;
+    }
+    Some((0.5 * (edge[0] + edge[1]), 0.5 * (edge[1] - edge[0])))
+}
+
+/// Measures the silhouette of the marker's rings along its whole length at the reference pose
+/// and fits `offset(s) = a_polarity + b (s - mean s)` robustly (white and black rings get their
+/// own offset: the shading across the rod moves a white ring's edges more than a black one's).
+/// The centre is the black rings' when there are enough of them, else the white ones'. `None`
+/// when too few rows stand out or they span too little of the marker.
+fn fit_silhouette(
+    frame: &FrameView,
+    knots: &Knots,
+    marker: &Marker,
+    s_ref: f64,
+) -> Option<SilhouetteFit> {
+    let step_mm = 0.5;
+    let mut rows: Vec<(f64, f64, f64, bool)> = Vec::new(); // (s, c, ratio, white)
+    for (u, white) in ring_rows_all(marker, 1.0, step_mm) {
+        let s = s_ref + u;
+        let lp = knots.at(s);
+        if let Some((c, hw)) = ring_silhouette_any(frame, &lp, white) {
+            rows.push((s, c, hw / lp.radius_px, white));
+        }
+    }
+    let mut keep = vec![true; rows.len()];
+    let mut coef = (0.0, 0.0, 0.0, 0.0); // (a_white, a_black, b, s_mean)
+    let mut rms = f64::NAN;
+    for _ in 0..4 {
+        let kept: Vec<&(f64, f64, f64, bool)> = rows
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(r, _)| r)
+            .collect();
+        let n = kept.len();
+        if n < 8 {
+            return None;
+        }
+        let sm = kept.iter().map(|r| r.0).sum::<f64>() / n as f64;
+        let spread = kept.iter().map(|r| r.0).fold(f64::MIN, f64::max)
+            - kept.iter().map(|r| r.0).fold(f64::MAX, f64::min);
+        if spread < 0.4 * marker.length_mm() {
+            return None;
+        }
+        // Normal equations for (a_white, a_black, b).
+        let mut m = vec![vec![0.0f64; 4]; 3];
+        let (mut nw, mut nb) = (0usize, 0usize);
+        for r in &kept {
+            let x = [
+                if r.3 { 1.0 } else { 0.0 },
+                if r.3 { 0.0 } else { 1.0 },
+                r.0 - sm,
+            ];
+            for i in 0..3 {
+                for j in 0..3 {
+                    m[i][j] += x[i] * x[j];
+                }
+                m[i][3] += x[i] * r.1;
+            }
+            if r.3 {
+                nw += 1;
+            } else {
+                nb += 1;
+            }
+        }
+        let sol = if nw == 0 || nb == 0 {
+            // One polarity only: a single offset.
+            let i = if nw == 0 { 1 } else { 0 };
+            let mm = vec![
+                vec![m[i][i], m[i][2], m[i][3]],
+                vec![m[2][i], m[2][2], m[2][3]],
+            ];
+            let s2 = crate::line::solve(mm)?;
+            vec![s2[0], s2[0], s2[1]]
+        } else {
+            crate::line::solve(m)?
+        };
+        coef = (sol[0], sol[1], sol[2], sm);
+        let resid: Vec<f64> = rows
+            .iter()
+            .map(|r| r.1 - (if r.3 { sol[0] } else { sol[1] }) - sol[2] * (r.0 - sm))
+            .collect();
+        let mut abs: Vec<f64> = resid
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(e, _)| e.abs())
+            .collect();
+        abs.sort_by(|a, b| a.total_cmp(b));
+        let mad = abs[abs.len() / 2] * 1.4826;
+        rms = (abs.iter().map(|e| e * e).sum::<f64>() / abs.len() as f64).sqrt();
+        let limit = (4.0 * mad).max(0.05);
+        let new_keep: Vec<bool> = resid.iter().map(|e| e.abs() <= limit).collect();
+        if new_keep == keep {
+            break;
+        }
+        keep = new_keep;
+    }
+    let (aw, ab, b, sm) = coef;
+    let n_black = rows.iter().zip(&keep).filter(|(r, k)| **k && !r.3).count();
+    let centre = if n_black >= 6 { ab } else { aw };
+    let kept: Vec<(f64, f64, f64, bool)> = rows
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(r, _)| *r)
+        .collect();
+    // The radius: from the black rings when there are enough (their edges do not fade into the
+    // shading), else from the white ones.
+    let ratios: Vec<f64> = kept
+        .iter()
+        .filter(|r| (n_black >= 6) != r.3)
+        .map(|r| r.2)
+        .collect();
+    let radius_ratio = ratios.iter().sum::<f64>() / ratios.len().max(1) as f64;
+    let ppm = knots.at(sm).px_per_mm;
+    let thin = (step_mm * ppm).min(1.0);
+    let sigma = rms.max(0.02);
+    Some(SilhouetteFit {
+        rows: kept
+            .iter()
+            .map(|r| (r.0, r.1 - if r.3 { aw } else { ab } + centre))
+            .collect(),
+        weight: thin / (sigma * sigma),
+        s_mean_mm: sm,
+        rms_px: rms,
+        radius_ratio: if ratios.is_empty() { 1.0 } else { radius_ratio },
+    })
+    .filter(|_| b.is_finite())
 }

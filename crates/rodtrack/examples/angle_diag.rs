@@ -1,0 +1,233 @@
+//! Angle diagnostics on the simulator: per-row errors of the enhanced mode against truth, as CSV.
+//!
+//! `cargo run --release --example angle_diag -- scenario NAME FRAMES VARIATION OUT.csv`
+//! `cargo run --release --example angle_diag -- grid VARIATION NOISE(0|1) OUT.csv`
+//!
+//! `grid` renders still states (every rod at a grid of positions and angles) and measures each
+//! with a fresh tracker (what the first frame after calibration gives).
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+use rodtrack_core::calib::calibrate_rod;
+use rodtrack_core::{CameraIntrinsics, FrameView, Mode, RodTracker, Status};
+use rodtrack_sim::{
+    apply_variation, default_cameras, NoiseModel, RenderMode, RodPose, Scenario, SceneConfig,
+    Simulation, WorldState,
+};
+use std::f64::consts::TAU;
+use std::io::Write;
+
+fn wrap(d: f64) -> f64 {
+    let d = d.rem_euclid(TAU);
+    if d > TAU / 2.0 {
+        d - TAU
+    } else {
+        d
+    }
+}
+
+fn setup(
+    scenario: &str,
+    frames: usize,
+    variation: &str,
+    noise: bool,
+) -> (
+    Simulation,
+    Vec<Vec<RodTracker>>,
+    Vec<Vec<rodtrack_core::calib::RodCalibration>>,
+) {
+    let mut scene = SceneConfig::default();
+    let mut cams = default_cameras();
+    apply_variation(variation, &mut scene, &mut cams).unwrap();
+    if !noise {
+        for c in &mut cams {
+            c.noise = NoiseModel::none();
+        }
+    }
+    let sc = Scenario::by_name(scenario, &scene, 3)
+        .unwrap()
+        .with_frames(frames);
+    let mut sim = Simulation::new(scene, cams, sc, RenderMode::Fast)
+        .unwrap()
+        .with_seed(3);
+    let mut all = Vec::new();
+    let mut cals = Vec::new();
+    for cam in 0..sim.cameras().len() {
+        let inputs = sim.calibration_inputs(cam, 3).unwrap();
+        let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+        let meta = sim.render_reference(cam, &mut buf).unwrap();
+        let m = inputs.opencv_model_optional.as_ref().unwrap();
+        let intr = CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap();
+        let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+        let mut trs = Vec::new();
+        let mut cs = Vec::new();
+        for r in &inputs.rods {
+            match calibrate_rod(r, &view, Some(&intr)) {
+                Ok(c) => {
+                    eprintln!(
+                        "cam {cam} rod {} code_phase {:.3} radius_ratio {:.4} warnings {:?}",
+                        r.rod,
+                        c.residuals.reference_code_phase_steps,
+                        c.residuals.radius_ratio,
+                        c.residuals.warnings
+                    );
+                    // The true axis across the knots at the marker's middle, at the reference
+                    // and at the travel's ends.
+                    let rc = sim.scene().rods[r.rod as usize].clone();
+                    let h = rc.half_travel_mm();
+                    let mut offs = Vec::new();
+                    for pos in [-0.9 * h, 0.0, 0.9 * h] {
+                        let u = 85.0;
+                        let lp = c.knots.at(pos + u);
+                        let y = rc.marker_y(u, pos);
+                        if let Ok(Some((x, yy))) = sim.project_rod_axis(cam, r.rod as usize, y) {
+                            offs.push((x - lp.x) * -lp.ty + (yy - lp.y) * lp.tx);
+                        }
+                    }
+                    eprintln!(
+                        "   axis offset from knots at -0.9h, 0, +0.9h (px): {:?}, radius_px {:.2}",
+                        offs.iter().map(|o| format!("{o:+.3}")).collect::<Vec<_>>(),
+                        c.knots.at(85.0).radius_px
+                    );
+                    trs.push(RodTracker::new(&c, meta.width, meta.height, Mode::Enhanced).unwrap());
+                    cs.push(c);
+                }
+                Err(e) => eprintln!("cam {cam} rod {}: {e}", r.rod),
+            }
+        }
+        all.push(trs);
+        cals.push(cs);
+    }
+    (sim, all, cals)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    match args[1].as_str() {
+        "scenario" => {
+            let (name, frames, variation, out) =
+                (&args[2], args[3].parse().unwrap(), &args[4], &args[5]);
+            let (mut sim, mut trackers, _) = setup(name, frames, variation, true);
+            let mut f_out = std::fs::File::create(out).unwrap();
+            writeln!(
+                f_out,
+                "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason"
+            )
+            .unwrap();
+            for (cam, trs) in trackers.iter_mut().enumerate() {
+                let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+                for f in 0..sim.frame_count() {
+                    let meta = sim.render(f, cam, &mut buf).unwrap();
+                    let view =
+                        FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
+                            .unwrap();
+                    let truth = sim.truth(f, cam).unwrap();
+                    for tr in trs.iter_mut() {
+                        let r = tr.process(&view).unwrap();
+                        let t = truth.iter().find(|t| t.m.rod == tr.rod()).unwrap();
+                        writeln!(
+                            f_out,
+                            "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{}",
+                            tr.rod(),
+                            t.visible as u8,
+                            r.status,
+                            t.m.position_mm,
+                            t.m.angle_rad,
+                            r.position_mm,
+                            r.angle_rad,
+                            if r.status == Status::Ok {
+                                wrap(r.angle_rad - t.m.angle_rad)
+                            } else {
+                                f64::NAN
+                            },
+                            r.theta_steps,
+                            r.gray_step,
+                            r.amp_ratio,
+                            r.reason
+                        )
+                        .unwrap();
+                    }
+                }
+            }
+        }
+        "grid" => {
+            let (variation, noise, out) = (&args[2], args[3] == "1", &args[4]);
+            let n_pos: usize = args.get(5).map(|s| s.parse().unwrap()).unwrap_or(5);
+            let n_ang: usize = args.get(6).map(|s| s.parse().unwrap()).unwrap_or(32);
+            let (mut sim, trackers, _) = setup("static", 1, variation, noise);
+            let halves: Vec<f64> = sim
+                .scene()
+                .rods
+                .iter()
+                .map(|r| r.half_travel_mm())
+                .collect();
+            let mut f_out = std::fs::File::create(out).unwrap();
+            writeln!(
+                f_out,
+                "cam,rod,ip,ia,visible,status,tpos,tang,pos,ang,err,theta,gray,amp"
+            )
+            .unwrap();
+            let mut k = 0u64;
+            for ip in 0..n_pos {
+                for ia in 0..n_ang {
+                    k += 1;
+                    let state = WorldState {
+                        rods: halves
+                            .iter()
+                            .enumerate()
+                            .map(|(i, &h)| {
+                                let fp = if n_pos > 1 {
+                                    ip as f64 / (n_pos - 1) as f64
+                                } else {
+                                    0.5
+                                };
+                                RodPose {
+                                    position_mm: -0.9 * h + 1.8 * h * fp,
+                                    // offset per rod so the rods do not all share an angle
+                                    angle_rad: (ia as f64 + 0.137 * i as f64) * TAU / n_ang as f64,
+                                    velocity_mm_s: 0.0,
+                                    angular_velocity_rad_s: 0.0,
+                                }
+                            })
+                            .collect(),
+                        hands: vec![],
+                        ball: None,
+                    };
+                    for (cam, trs) in trackers.iter().enumerate() {
+                        let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+                        let meta = sim.render_state(cam, &state, k, &mut buf).unwrap();
+                        let view =
+                            FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
+                                .unwrap();
+                        for tr0 in trs {
+                            let mut tr = tr0.clone();
+                            let r = tr.process(&view).unwrap();
+                            let i = tr.rod() as usize;
+                            let pose = state.rods[i];
+                            let vis = sim.marker_status(cam, i, &state).unwrap() == Status::Ok;
+                            writeln!(
+                                f_out,
+                                "{cam},{i},{ip},{ia},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4}",
+                                vis as u8,
+                                r.status,
+                                pose.position_mm,
+                                pose.angle_rad.rem_euclid(TAU),
+                                r.position_mm,
+                                r.angle_rad,
+                                if r.status == Status::Ok {
+                                    wrap(r.angle_rad - pose.angle_rad)
+                                } else {
+                                    f64::NAN
+                                },
+                                r.theta_steps,
+                                r.gray_step,
+                                r.amp_ratio
+                            )
+                            .unwrap();
+                        }
+                    }
+                }
+            }
+        }
+        other => panic!("unknown mode {other}"),
+    }
+}
