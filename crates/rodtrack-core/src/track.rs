@@ -175,6 +175,8 @@ struct EnhancedState {
     centre: CentreFit,
     /// Frames processed (for decimating the learning).
     frames_seen: u64,
+    /// Frames in which the whole travel was searched (diagnostics).
+    full_searches: u64,
     /// The last frame's results between stages, when it got past the edges.
     inter: Option<Intermediate>,
     /// Where the marker is expected in the next frame (last position plus last motion), mm on
@@ -492,6 +494,7 @@ impl RodTracker {
             ring_u,
             centre: CentreFit::default(),
             frames_seen: 0,
+            full_searches: 0,
             inter: None,
             predicted_mm: None,
             white_u: run_rows(false),
@@ -549,6 +552,12 @@ impl RodTracker {
     /// The enhanced line.
     pub fn knots(&self) -> &Knots {
         &self.calib.knots
+    }
+    /// Frames in which enhanced mode searched the whole travel for the marker (the first, and
+    /// any after the marker was lost or jumped); the others searched only around where the
+    /// last frame's motion put it.
+    pub fn full_searches(&self) -> u64 {
+        self.enhanced.full_searches
     }
 
     /// Measures the rod in one frame. Allocates nothing.
@@ -647,8 +656,9 @@ impl RodTracker {
         let st = &mut self.enhanced;
         let last_mm = st.inter.map(|i| i.edges.position_mm);
         st.inter = None;
+        let loc = st.locate(m, frame);
         st.predicted_mm = None;
-        let loc = match st.locate(m, frame) {
+        let loc = match loc {
             Ok(loc) => loc,
             Err(r) => return r,
         };
@@ -842,6 +852,7 @@ impl EnhancedState {
             }
         }
         if found.is_none() {
+            st.full_searches += 1;
             found = coarse_search(st, frame, node_off, 0, n_cand - 1);
         }
         st.last_k = None;

@@ -5,10 +5,12 @@
 //! stage on one frame.
 #![allow(missing_docs, clippy::unwrap_used)]
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::measurement::{Measurement, ValueFormatter};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
 use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode, RodTracker, Stage};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
+use std::time::Duration;
 
 /// Consecutive frames of the sequence.
 const FRAMES: usize = 100;
@@ -56,13 +58,68 @@ fn setup() -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
     )
 }
 
+/// The benchmark thread's CPU time: on a shared machine, unlike the wall time, it leaves out
+/// the time the thread waited for a core.
+struct CpuTime;
+
+impl Measurement for CpuTime {
+    type Intermediate = cpu_time::ThreadTime;
+    type Value = Duration;
+    fn start(&self) -> Self::Intermediate {
+        cpu_time::ThreadTime::now()
+    }
+    fn end(&self, i: Self::Intermediate) -> Self::Value {
+        i.elapsed()
+    }
+    fn add(&self, v1: &Self::Value, v2: &Self::Value) -> Self::Value {
+        *v1 + *v2
+    }
+    fn zero(&self) -> Self::Value {
+        Duration::ZERO
+    }
+    fn to_f64(&self, value: &Self::Value) -> f64 {
+        value.as_nanos() as f64
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        &CpuFormatter
+    }
+}
+
+struct CpuFormatter;
+
+impl ValueFormatter for CpuFormatter {
+    fn scale_values(&self, typical_ns: f64, values: &mut [f64]) -> &'static str {
+        let (div, unit) = match typical_ns {
+            t if t < 1e3 => (1.0, "ns cpu"),
+            t if t < 1e6 => (1e3, "µs cpu"),
+            _ => (1e6, "ms cpu"),
+        };
+        values.iter_mut().for_each(|v| *v /= div);
+        unit
+    }
+    fn scale_throughputs(&self, _: f64, _: &Throughput, _: &mut [f64]) -> &'static str {
+        "ns cpu"
+    }
+    fn scale_for_machines(&self, _: &mut [f64]) -> &'static str {
+        "ns"
+    }
+}
+
 fn per_frame(c: &mut Criterion) {
+    per_frame_in(c, "per_frame");
+}
+
+fn per_frame_cpu(c: &mut Criterion<CpuTime>) {
+    per_frame_in(c, "per_frame_cpu");
+}
+
+fn per_frame_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
     let (frames, cal, (w, h, stride, fmt)) = setup();
     let views: Vec<FrameView> = frames
         .iter()
         .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
         .collect();
-    let mut g = c.benchmark_group("per_frame");
+    let mut g = c.benchmark_group(group);
     for (name, mode) in [("enhanced", Mode::Enhanced), ("paper", Mode::Paper)] {
         let mut pipe = CameraPipeline::new(&cal, mode).unwrap();
         let mut rows = Vec::with_capacity(16);
@@ -126,4 +183,9 @@ fn per_stage(c: &mut Criterion) {
 }
 
 criterion_group!(benches, per_frame, per_stage);
-criterion_main!(benches);
+criterion_group! {
+    name = cpu;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = per_frame_cpu
+}
+criterion_main!(benches, cpu);
