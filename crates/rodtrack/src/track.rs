@@ -1,22 +1,33 @@
 //! `rodtrack track`: every camera through the runtime [`Pipeline`].
 //!
 //! ```text
-//!  --input 0 -> [capture 0] -> queue -> [CameraPipeline 0] --\
-//!                                                              >-> [group by frame id] -> FilterSink -> sinks
-//!  --input 1 -> [capture 1] -> queue -> [CameraPipeline 1] --/      (filter + fusion)    (CSV/JSONL, UDP)
+//!  recordings (batch):
+//!  --input 0 -> [capture 0] -> queue -> [CameraPipeline 0 + filter 0] --\
+//!                                                                         >-> [group by frame id, fusion] -> sinks
+//!  --input 1 -> [capture 1] -> queue -> [CameraPipeline 1 + filter 1] --/                                  (CSV/JSONL, UDP)
+//!
+//!  live sources: one thread per camera reads, tracks, filters and writes its rows; the thread
+//!  that completes a frame set fuses it and writes the fused rows.
+//!  --input 0 -> [capture 0 + CameraPipeline 0 + filter 0] -> sinks (camera 0's rows)
+//!  --input 1 -> [capture 1 + CameraPipeline 1 + filter 1] -> sinks (camera 1's rows)
+//!                                  \-> [group by frame id, fusion] -> sinks (fused rows)
 //! ```
 //!
 //! - One processing closure per camera: the camera's [`CameraPipeline::process`]; a frame that
 //!   the source could not deliver, or the tracker could not use, gives `bad_frame` rows for
 //!   every rod of that camera and the run goes on.
-//! - The temporal filter and the fusion ([`FrameSetFilter`]) run in a sink wrapper,
-//!   [`FilterSink`], not in the pipeline's fusion hook: the hook can only *append* rows to a
-//!   set, while the filter *replaces* each camera's raw rows by filtered ones (and appends the
-//!   fused rows). The wrapper sees exactly one frame set per `write`, in frame order, so the
-//!   result is the same as a sequential loop; its time counts in the latency (which the
-//!   pipeline measures up to the return of the sink's `write`).
-//! - Recordings run in [`Mode::Batch`] (never drop, as fast as possible), live sources (cameras,
-//!   the real-time simulator) in [`Mode::Live`] (capture never blocked; drops counted).
+//! - The temporal filter and the fusion ([`FrameSetFilter`]'s, split by [`CameraFilter`] and
+//!   [`SetFusion`]): each camera's rows go through that camera's per-rod filters in its own
+//!   thread (the pipeline's camera filter stage), and the fusion of the measured rows, filtered
+//!   again, is the pipeline's fusion stage. The results are the same as
+//!   [`FrameSetFilter::process`] over each frame set.
+//! - Recordings run in [`RunMode::Batch`] (never drop, as fast as possible) with one `write`
+//!   per frame set, so that files are identical whatever the timing. Live sources (cameras,
+//!   the real-time simulator) run in [`RunMode::Live`] with [`Handoff::Inline`] (each camera's
+//!   thread processes the frame it read: no hand-off; frames the source skips meanwhile are
+//!   counted from gaps in its frame ids) and [`WriteMode::PerCamera`] (each camera's rows are
+//!   written as soon as they are measured; the fused rows when the set is complete), the
+//!   lowest latency; see [`pipeline_config`].
 //! - A progress bar for recordings, live statistics (frames/s, time per camera frame, drops)
 //!   about once a second for live sources, on stderr.
 //! - On the end of the inputs, an error or Ctrl-C: every pending set is written, the sinks
@@ -25,14 +36,18 @@
 use crate::calibration_io::read_calibration;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{Console, ConsoleHandle};
-use rodtrack_core::{CameraPipeline, FrameSetFilter, Measurement, Mode, PixelFormat};
+use rodtrack_core::filter::{FilterBank, FilterConfig};
+use rodtrack_core::fusion::{Fuser, FusionConfig};
+#[cfg(doc)]
+use rodtrack_core::FrameSetFilter;
+use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode, PixelFormat};
 use rodtrack_io::runtime::{
-    LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig, PipelineCounters,
-    PipelineReport,
+    Handoff, LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig,
+    PipelineCounters, PipelineReport, WriteMode,
 };
 use rodtrack_io::source::{OpenOptions, SourceInfo};
 use rodtrack_io::{
-    CsvSink, FrameBuffer, FrameSource, IoError, JsonlSink, MeasurementSink, MultiSink, SourceError,
+    CsvSink, FrameBuffer, FrameSource, JsonlSink, MeasurementSink, MultiSink, SourceError,
     SourceFactory, UdpSink,
 };
 use std::io::Write;
@@ -117,16 +132,21 @@ pub fn run(args: Args) -> Result<()> {
         });
     }
     let sink = open_sinks(&args.out, args.format.as_deref(), args.udp.as_deref())?;
-    let filter = (!args.raw).then(|| FrameSetFilter::new(mode, cal.cameras.len() > 1));
-    let mut sink = ConsoleRows {
-        inner: FilterSink::new(filter, sink),
+    let sink = ConsoleRows {
+        inner: sink,
         console: console.clone(),
     };
     let stop = Arc::new(AtomicBool::new(false));
     install_ctrlc(stop.clone());
-    let outcome = run_cameras(cameras, &mut sink, &stop, args.max_frames, true)?;
+    let options = RunOptions {
+        max_frames: args.max_frames,
+        progress: true,
+        filter: (!args.raw).then_some(mode),
+        config: None,
+    };
+    let (outcome, sink) = run_cameras(cameras, sink, &stop, &options)?;
+    drop(sink);
     eprintln!("{}", outcome.summary());
-    sink.inner.print_summary();
     if outcome.report.sink_errors > 0 {
         bail!(
             "{} write(s) to the output failed (first: {}); rows written before are in {}",
@@ -206,98 +226,108 @@ const MAX_WARNINGS: u64 = 20;
 /// The bad frames printed in full per camera; later ones are only counted.
 const MAX_BAD_FRAMES_PRINTED: u64 = 20;
 
-/// A sink that runs the temporal filter and the fusion over each frame set before passing the
-/// rows on (`None`: rows pass unchanged). See the module documentation for why this is a sink
-/// wrapper and not the pipeline's fusion hook.
-pub struct FilterSink<S: MeasurementSink> {
-    filter: Option<FrameSetFilter>,
-    inner: S,
-    out: Vec<Measurement>,
-    warnings: u64,
-    /// Time of each `write` (filter, fusion and the inner sinks).
-    write_times: LatencyHistogram,
+/// The temporal filter tuned to the measurement noise of `mode`, as [`FrameSetFilter::new`]
+/// tunes it (a test checks that both give the same rows).
+pub fn filter_config(mode: Mode) -> FilterConfig {
+    let mut config = FilterConfig::default();
+    if mode == Mode::Paper {
+        // The paper's resolution: about 1 px (0.6-0.9 mm) and 0.013 rad.
+        config.position_noise_mm = 0.3;
+        config.angle_noise_rad = 0.013;
+    }
+    config
 }
 
-impl<S: MeasurementSink> FilterSink<S> {
-    /// Wraps `inner`.
-    pub fn new(filter: Option<FrameSetFilter>, inner: S) -> Self {
-        FilterSink {
-            filter,
-            inner,
-            out: Vec::with_capacity(64),
-            warnings: 0,
-            write_times: LatencyHistogram::new(),
+/// One camera's part of [`FrameSetFilter`]: its rows through its per-rod filters (run in the
+/// camera's thread, as the pipeline's camera filter stage).
+#[derive(Debug, Clone)]
+pub struct CameraFilter {
+    bank: FilterBank,
+}
+
+impl CameraFilter {
+    /// Filters for `mode`.
+    pub fn new(mode: Mode) -> Self {
+        CameraFilter {
+            bank: FilterBank::new(filter_config(mode)),
         }
     }
 
-    /// Time per `write` call (one frame set): filter, fusion and the inner sinks.
-    pub fn write_times(&self) -> LatencySummary {
-        self.write_times.summary()
+    /// Appends the filtered row of each camera row (fused rows are not a camera's).
+    pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
+        for m in rows {
+            if let CameraId::Camera(_) = m.camera {
+                out.push(self.bank.update(m).sanitized());
+            }
+        }
+    }
+}
+
+/// The fusion part of [`FrameSetFilter`]: the measured rows of a frame set fused per rod and
+/// filtered again (the pipeline's fusion stage); disagreements and sync warnings printed.
+#[derive(Debug)]
+pub struct SetFusion {
+    fuser: Fuser,
+    bank: FilterBank,
+    warnings: Arc<Warnings>,
+}
+
+impl SetFusion {
+    /// Fusion and filters for `mode`, printing to `warnings`.
+    pub fn new(mode: Mode, warnings: Arc<Warnings>) -> Self {
+        SetFusion {
+            fuser: Fuser::new(FusionConfig::default()),
+            bank: FilterBank::new(filter_config(mode)),
+            warnings,
+        }
+    }
+
+    /// Appends the fused rows of the set's measured rows `raw`.
+    pub fn process(&mut self, raw: &[Measurement], out: &mut Vec<Measurement>) {
+        let start = out.len();
+        self.fuser.process(raw, &mut self.bank, out);
+        for m in &mut out[start..] {
+            *m = m.sanitized();
+        }
+        for d in self.fuser.disagreements() {
+            self.warnings.warn(format_args!(
+                "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
+                d.frame, d.rod, d.cameras[0], d.cameras[1], d.position_diff_mm, d.angle_diff_rad
+            ));
+        }
+        for o in self.fuser.out_of_sync() {
+            self.warnings.warn(format_args!(
+                "frame {}: camera {} out of sync by {:.2} ms",
+                o.frame,
+                o.camera,
+                o.offset_s * 1e3
+            ));
+        }
+    }
+}
+
+/// Camera disagreements and sync warnings: the first [`MAX_WARNINGS`] printed, all counted.
+#[derive(Debug, Default)]
+pub struct Warnings {
+    count: AtomicU64,
+}
+
+impl Warnings {
+    fn warn(&self, msg: std::fmt::Arguments<'_>) {
+        if self.count.fetch_add(1, Ordering::Relaxed) < MAX_WARNINGS {
+            eprintln!("\n{msg}");
+        }
     }
 
     /// Prints how many warnings were not printed.
     pub fn print_summary(&self) {
-        if self.warnings > MAX_WARNINGS {
+        let n = self.count.load(Ordering::Relaxed);
+        if n > MAX_WARNINGS {
             eprintln!(
-                "{} camera disagreement / sync warnings ({} not printed)",
-                self.warnings,
-                self.warnings - MAX_WARNINGS
+                "{n} camera disagreement / sync warnings ({} not printed)",
+                n - MAX_WARNINGS
             );
         }
-    }
-
-    fn warn(&mut self, msg: std::fmt::Arguments<'_>) {
-        self.warnings += 1;
-        if self.warnings <= MAX_WARNINGS {
-            eprintln!("\n{msg}");
-        }
-    }
-}
-
-impl<S: MeasurementSink> MeasurementSink for FilterSink<S> {
-    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        let start = Instant::now();
-        let result = self.write_inner(rows);
-        self.write_times.record(start.elapsed());
-        result
-    }
-
-    fn flush(&mut self) -> Result<(), IoError> {
-        self.inner.flush()
-    }
-}
-
-impl<S: MeasurementSink> FilterSink<S> {
-    fn write_inner(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        let Some(f) = self.filter.as_mut() else {
-            return self.inner.write(rows);
-        };
-        self.out.clear();
-        f.process(rows, &mut self.out);
-        if !f.disagreements().is_empty() || !f.out_of_sync().is_empty() {
-            let dis = f.disagreements().to_vec();
-            let sync = f.out_of_sync().to_vec();
-            for d in dis {
-                self.warn(format_args!(
-                    "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
-                    d.frame,
-                    d.rod,
-                    d.cameras[0],
-                    d.cameras[1],
-                    d.position_diff_mm,
-                    d.angle_diff_rad
-                ));
-            }
-            for o in sync {
-                self.warn(format_args!(
-                    "frame {}: camera {} out of sync by {:.2} ms",
-                    o.frame,
-                    o.camera,
-                    o.offset_s * 1e3
-                ));
-            }
-        }
-        self.inner.write(&self.out)
     }
 }
 
@@ -333,19 +363,27 @@ pub struct Outcome {
     pub report: PipelineReport,
     /// Per camera: time in the tracker per frame.
     pub process: Vec<LatencySummary>,
-    /// The mode the pipeline ran in.
-    pub mode: RunMode,
+    /// The pipeline's settings.
+    pub config: PipelineConfig,
 }
 
 impl Outcome {
     /// The report, the mode and the per-camera tracker times, for printing.
     pub fn summary(&self) -> String {
         let mut s = format!(
-            "\n{} mode, {}",
-            match self.mode {
+            "\n{} mode ({}, {}), {}",
+            match self.config.mode {
                 RunMode::Live => "live",
                 RunMode::Paced { .. } => "paced",
                 RunMode::Batch => "batch",
+            },
+            match self.config.handoff {
+                Handoff::Inline => "each camera's thread tracks its frames",
+                Handoff::Queue => "capture queue, processing thread per camera",
+            },
+            match self.config.write {
+                WriteMode::PerCamera => "rows written per camera",
+                WriteMode::Set => "rows written per frame set",
             },
             self.report
         );
@@ -384,11 +422,29 @@ impl FrameSource for Limit {
     }
 }
 
-/// Pipeline settings for recordings (`live` false) or live sources.
+/// How long a live camera thread polls the output lock, held by another camera's thread while
+/// it writes (a few us), before it sleeps on it: with 2 cores or more the holder runs
+/// meanwhile, and the poll saves a thread wake-up (`rodtrack bench-latency`: the lock wait's
+/// p99 falls from 25-60 us to under 10 us on a 2-core machine); on 1 core the holder cannot
+/// run while the other polls, so there is no polling.
+pub const LIVE_SPIN: Duration = Duration::from_micros(30);
+
+/// Pipeline settings for recordings (`live` false) or live sources: for live sources the
+/// lowest latency (no hand-off between threads, each camera's rows written as soon as they are
+/// measured, [`LIVE_SPIN`] on the output lock); for recordings one write per frame set (files
+/// identical whatever the timing).
 pub fn pipeline_config(live: bool) -> PipelineConfig {
     if live {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         PipelineConfig {
             mode: RunMode::Live,
+            handoff: Handoff::Inline,
+            write: WriteMode::PerCamera,
+            spin: if cores >= 2 {
+                LIVE_SPIN
+            } else {
+                Duration::ZERO
+            },
             ..PipelineConfig::default()
         }
     } else {
@@ -402,19 +458,38 @@ pub fn pipeline_config(live: bool) -> PipelineConfig {
     }
 }
 
+/// How [`run_cameras`] runs.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Stop after this many frames per camera.
+    pub max_frames: Option<u64>,
+    /// A progress bar (recordings) or live statistics on stderr.
+    pub progress: bool,
+    /// The temporal filter and, with several cameras, the fusion, tuned for this mode
+    /// (`None`: each camera's raw rows).
+    pub filter: Option<Mode>,
+    /// Pipeline settings instead of [`pipeline_config`]'s.
+    pub config: Option<PipelineConfig>,
+}
+
 /// Runs the cameras through the runtime pipeline into `sink` until the sources end or `stop`
-/// is set; Live mode when any source is live, else Batch. With `progress`, prints a progress
-/// bar (recordings) or live statistics on stderr. Bad frames are marked and printed (the first
-/// few per camera); the sink is flushed before returning.
-pub fn run_cameras(
+/// is set; Live mode when any source is live, else Batch (see [`pipeline_config`]). Bad frames
+/// are marked and printed (the first few per camera). Returns the sink, flushed.
+pub fn run_cameras<S: MeasurementSink + 'static>(
     cameras: Vec<TrackCamera>,
-    sink: &mut dyn MeasurementSink,
+    sink: S,
     stop: &Arc<AtomicBool>,
-    max_frames: Option<u64>,
-    progress: bool,
-) -> Result<Outcome> {
+    options: &RunOptions,
+) -> Result<(Outcome, S)> {
+    let RunOptions {
+        max_frames,
+        progress,
+        filter,
+        config,
+    } = options.clone();
     let live = cameras.iter().any(|c| c.source.info().live);
-    let config = pipeline_config(live);
+    let config = config.unwrap_or_else(|| pipeline_config(live));
+    let ncam = cameras.len();
     let total = if live {
         None
     } else {
@@ -445,7 +520,7 @@ pub fn run_cameras(
         let t = Arc::new(ProcessTimes::default());
         times.push(t.clone());
         let mut overlays = Vec::new();
-        pipeline.add_camera(
+        let index = pipeline.add_camera(
             source,
             Box::new(move |meta, frame, rows| {
                 let ts = meta.timestamp_ns.as_secs_f64();
@@ -497,6 +572,18 @@ pub fn run_cameras(
                 }
             }),
         );
+        if let Some(mode) = filter {
+            let mut f = CameraFilter::new(mode);
+            pipeline.set_camera_filter(
+                index,
+                Box::new(move |_meta, rows, out| f.process(rows, out)),
+            )?;
+        }
+    }
+    let warnings = Arc::new(Warnings::default());
+    if let (Some(mode), true) = (filter, ncam > 1) {
+        let mut fusion = SetFusion::new(mode, warnings.clone());
+        pipeline.set_fusion(Box::new(move |_set, raw, out| fusion.process(raw, out)));
     }
     // The Ctrl-C flag is the caller's; the pipeline has its own: forward one to the other.
     let pipeline_stop = pipeline.stop_flag();
@@ -519,19 +606,23 @@ pub fn run_cameras(
             })
             .context("cannot start the monitor thread")?
     };
-    let result = pipeline.run(sink);
+    let result = pipeline.run_direct(sink);
     done.store(true, Ordering::SeqCst);
     let _ = monitor.join();
-    let report = result.context("running the pipeline")?;
+    let (report, sink) = result.context("running the pipeline")?;
+    warnings.print_summary();
     let process = times
         .iter()
         .map(|t| t.histogram.lock().map(|h| h.summary()).unwrap_or_default())
         .collect();
-    Ok(Outcome {
-        report,
-        process,
-        mode: config.mode,
-    })
+    Ok((
+        Outcome {
+            report,
+            process,
+            config,
+        },
+        sink,
+    ))
 }
 
 /// Forwards `stop` to the pipeline and prints progress until `done`.
@@ -604,5 +695,107 @@ fn monitor(
     }
     if printed {
         eprintln!();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rodtrack_core::{FrameSetFilter, Status};
+
+    /// A frame set of `ncam` cameras x 8 rods: motion, noise, an occluded rod, a camera that
+    /// sometimes disagrees, a row of low quality.
+    fn frame_set(frame: u64, ncam: u32, noise: &mut u64) -> Vec<Measurement> {
+        let mut rnd = || {
+            *noise ^= *noise << 13;
+            *noise ^= *noise >> 7;
+            *noise ^= *noise << 17;
+            (*noise >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let t = frame as f64 / 200.0;
+        let mut rows = Vec::new();
+        for cam in 0..ncam {
+            for rod in 0..8u32 {
+                let status = if rod == 3 && frame % 37 < 4 {
+                    Status::Occluded
+                } else {
+                    Status::Ok
+                };
+                let mut m = Measurement::empty(frame, t, CameraId::Camera(cam), rod, status);
+                if status == Status::Ok {
+                    let phase = f64::from(rod);
+                    m.position_mm = 40.0 * (6.0 * t + phase).sin() + 0.05 * rnd();
+                    if cam == 1 && rod == 5 && frame % 50 == 7 {
+                        m.position_mm += 5.0;
+                    }
+                    let angle = 3.0 * t * (1.0 + phase) + 0.004 * rnd();
+                    m.angle_unwrapped_rad = angle;
+                    m.angle_rad = angle.rem_euclid(std::f64::consts::TAU);
+                    m.quality = if frame % 23 == 0 { 0.1 } else { 0.9 };
+                }
+                rows.push(m);
+            }
+        }
+        rows
+    }
+
+    #[test]
+    fn camera_filters_and_set_fusion_give_the_frame_set_filters_rows() {
+        for mode in [Mode::Enhanced, Mode::Paper] {
+            for ncam in [1u32, 2] {
+                let mut reference = FrameSetFilter::new(mode, ncam > 1);
+                let mut cameras: Vec<CameraFilter> =
+                    (0..ncam).map(|_| CameraFilter::new(mode)).collect();
+                let mut fusion = SetFusion::new(mode, Arc::new(Warnings::default()));
+                let mut noise = 0x9e37_79b9_7f4a_7c15;
+                let (mut want, mut got, mut one) = (Vec::new(), Vec::new(), Vec::new());
+                let (mut changed, mut fused) = (0, 0);
+                for frame in 0..400 {
+                    let raw = frame_set(frame, ncam, &mut noise);
+                    want.clear();
+                    reference.process(&raw, &mut want);
+                    got.clear();
+                    for (c, f) in cameras.iter_mut().enumerate() {
+                        one.clear();
+                        one.extend(
+                            raw.iter()
+                                .filter(|m| m.camera == CameraId::Camera(c as u32))
+                                .copied(),
+                        );
+                        f.process(&one, &mut got);
+                    }
+                    if ncam > 1 {
+                        fusion.process(&raw, &mut got);
+                    }
+                    assert_eq!(got, want, "{mode:?}, {ncam} camera(s), frame {frame}");
+                    changed += raw
+                        .iter()
+                        .zip(&want)
+                        .filter(|(r, w)| r.position_mm != w.position_mm)
+                        .count();
+                    fused += want
+                        .iter()
+                        .filter(|m| m.camera == CameraId::Fused && m.status == Status::Ok)
+                        .count();
+                }
+                // Not vacuous: the filters changed the values and, with 2 cameras, fused them.
+                assert!(changed > 1000, "{mode:?}: {changed}");
+                assert_eq!(fused > 1000, ncam > 1, "{mode:?}: {fused}");
+            }
+        }
+    }
+
+    #[test]
+    fn live_sources_run_inline_with_per_camera_writes_recordings_per_set() {
+        let live = pipeline_config(true);
+        assert_eq!(
+            (live.mode, live.handoff, live.write),
+            (RunMode::Live, Handoff::Inline, WriteMode::PerCamera)
+        );
+        let files = pipeline_config(false);
+        assert_eq!(
+            (files.mode, files.handoff, files.write),
+            (RunMode::Batch, Handoff::Queue, WriteMode::Set)
+        );
     }
 }

@@ -93,6 +93,70 @@ impl std::fmt::Display for LatencySummary {
     }
 }
 
+/// Where a frame's latency goes: the five consecutive stages from "frame available" to "rows
+/// written", each a distribution over frames (their sum, frame by frame, is the latency).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LatencyStages {
+    /// Frame available -> its processing starts: the queue and the processing thread's wake-up
+    /// ([`super::Handoff::Queue`]); zero with [`super::Handoff::Inline`].
+    pub pickup: LatencySummary,
+    /// The processing stage (the tracker) and the camera's filter.
+    pub process: LatencySummary,
+    /// Processing done -> the output stage has the rows: the hand-off to the calling thread
+    /// ([`super::Pipeline::run`]) or the wait for the output lock ([`super::Pipeline::run_direct`]).
+    pub handoff: LatencySummary,
+    /// Waiting for the other cameras of the frame set ([`super::WriteMode::Set`]); zero with
+    /// [`super::WriteMode::PerCamera`].
+    pub wait_set: LatencySummary,
+    /// The write: the set's rows gathered, the fusion and the sink's `write` call
+    /// ([`super::WriteMode::Set`]), or the camera's rows passed to the sink's `write`
+    /// ([`super::WriteMode::PerCamera`]).
+    pub write: LatencySummary,
+}
+
+impl std::fmt::Display for LatencyStages {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let us = |d: Duration| d.as_secs_f64() * 1e6;
+        write!(f, "stages p50/p99 (us):")?;
+        for (i, (name, s)) in [
+            ("pickup", &self.pickup),
+            ("process", &self.process),
+            ("hand-off", &self.handoff),
+            ("wait for set", &self.wait_set),
+            ("write", &self.write),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let sep = if i == 0 { "" } else { "," };
+            write!(f, "{sep} {name} {:.0}/{:.0}", us(s.p50), us(s.p99))?;
+        }
+        Ok(())
+    }
+}
+
+/// The histograms behind [`LatencyStages`].
+#[derive(Debug, Clone, Default)]
+pub(crate) struct StageHistograms {
+    pub(crate) pickup: LatencyHistogram,
+    pub(crate) process: LatencyHistogram,
+    pub(crate) handoff: LatencyHistogram,
+    pub(crate) wait_set: LatencyHistogram,
+    pub(crate) write: LatencyHistogram,
+}
+
+impl StageHistograms {
+    pub(crate) fn summary(&self) -> LatencyStages {
+        LatencyStages {
+            pickup: self.pickup.summary(),
+            process: self.process.summary(),
+            handoff: self.handoff.summary(),
+            wait_set: self.wait_set.summary(),
+            write: self.write.summary(),
+        }
+    }
+}
+
 impl LatencyHistogram {
     /// An empty histogram.
     pub fn new() -> Self {

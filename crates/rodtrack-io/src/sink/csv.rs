@@ -6,7 +6,7 @@
 //! columns (a `visible` column of `true`/`false`/`1`/`0` is returned, others are ignored),
 //! columns in any order, and `\r\n` line ends.
 
-use super::{fields, parse_camera, MeasurementSink};
+use super::{parse_camera, push_csv_row, MeasurementSink};
 use crate::IoError;
 use rodtrack_core::measurement::CSV_COLUMNS;
 use rodtrack_core::{Measurement, Status};
@@ -76,7 +76,6 @@ impl<W: Write> Drop for TextOut<W> {
 pub struct CsvSink<W: Write + Send = File> {
     out: TextOut<W>,
     line: String,
-    fields: [String; 11],
     flush_each_write: bool,
 }
 
@@ -93,8 +92,7 @@ impl<W: Write + Send> CsvSink<W> {
     pub fn new(writer: W, name: impl Into<PathBuf>) -> Result<Self, IoError> {
         let mut s = CsvSink {
             out: TextOut::new(writer, name.into()),
-            line: String::with_capacity(256),
-            fields: Default::default(),
+            line: String::with_capacity(4096),
             flush_each_write: true,
         };
         let header = CSV_COLUMNS.join(",") + "\n";
@@ -116,18 +114,12 @@ impl<W: Write + Send> CsvSink<W> {
 
 impl<W: Write + Send> MeasurementSink for CsvSink<W> {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        // All rows formatted first, then one copy into the writer.
+        self.line.clear();
         for m in rows {
-            fields(m, &mut self.fields);
-            self.line.clear();
-            for (i, f) in self.fields.iter().enumerate() {
-                if i > 0 {
-                    self.line.push(',');
-                }
-                self.line.push_str(f);
-            }
-            self.line.push('\n');
-            self.out.write_all(self.line.as_bytes())?;
+            push_csv_row(&mut self.line, m);
         }
+        self.out.write_all(self.line.as_bytes())?;
         if self.flush_each_write {
             self.out.flush()?;
         }

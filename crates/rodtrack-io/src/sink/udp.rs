@@ -1,4 +1,8 @@
-//! Low-latency UDP stream for a control program: one datagram per frame set.
+//! Low-latency UDP stream for a control program: one datagram per `write` call and frame id,
+//! sent (`send_to` returned) before `write` returns. The runtime writes one frame set per call
+//! ([`crate::runtime::WriteMode::Set`]), or each camera's rows of a frame as soon as they are
+//! measured and then the set's fused rows ([`crate::runtime::WriteMode::PerCamera`], `rodtrack
+//! track` on live sources): rows carry their camera, so a receiver can take either.
 //!
 //! Layout (version 1), all little endian:
 //!
@@ -204,7 +208,8 @@ pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
     })
 }
 
-/// Sends one datagram per frame set to a UDP address (default [`UDP_DEFAULT_ADDR`]).
+/// Sends one datagram per `write` call (per frame id within it) to a UDP address (default
+/// [`UDP_DEFAULT_ADDR`]).
 ///
 /// A `write` call with rows of several frames sends one datagram per run of rows with the same
 /// frame id. Nothing is buffered, so `flush` does nothing.
