@@ -1430,16 +1430,53 @@ pub fn ring_rows(marker: &Marker) -> Vec<f64> {
 /// The silhouette of a white ring across the rod at `lp`: (centre offset along the normal,
 /// half width), px. Each edge is where the profile crosses halfway between the print inside
 /// and the background outside; `None` when the ring does not stand out from the background.
+/// The tracker's fast scan: 0.5 px steps over 0.75 R .. 1.35 R.
 pub fn ring_silhouette(frame: &FrameView, lp: &LinePoint) -> Option<(f64, f64)> {
+    ring_silhouette_scan(
+        frame,
+        lp,
+        &SilhouetteScan {
+            bright: true,
+            step_px: 0.5,
+            min_contrast: 20.0,
+            from_radii: 0.75,
+            span_radii: 0.6,
+        },
+    )
+}
+
+/// How [`ring_silhouette_scan`] looks for a ring's edges.
+#[derive(Debug, Clone, Copy)]
+pub struct SilhouetteScan {
+    /// A white ring (brighter than the background) or a black one (darker).
+    pub bright: bool,
+    /// Scan step, px.
+    pub step_px: f64,
+    /// Least difference between the print (at 0.6 R) and the background (at 1.5 R).
+    pub min_contrast: f64,
+    /// Where the scan for an edge starts, in radii from the line.
+    pub from_radii: f64,
+    /// How far it goes, in radii.
+    pub span_radii: f64,
+}
+
+/// The silhouette of a full ring across the rod at `lp`, bright or dark against the
+/// background: (centre offset along the normal, half width), px. Each edge is where the
+/// profile crosses halfway between the print inside and the background outside.
+pub fn ring_silhouette_scan(
+    frame: &FrameView,
+    lp: &LinePoint,
+    scan: &SilhouetteScan,
+) -> Option<(f64, f64)> {
     let r = lp.radius_px;
-    let step = 0.5;
+    let step = scan.step_px;
+    let sign = if scan.bright { 1.0 } else { -1.0 };
     let at = |x: f64| {
         let (px, py) = lp.offset(0.0, x);
-        frame.luma_bilinear(px as f32, py as f32) as f64
+        sign * frame.luma_bilinear(px as f32, py as f32) as f64
     };
     let mut edge = [0.0f64; 2];
     for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
-        let x_in = side * 0.6 * r;
         let x_out = side * 1.5 * r;
         if !frame.contains(
             (lp.x - lp.ty * x_out) as f32,
@@ -1448,15 +1485,14 @@ pub fn ring_silhouette(frame: &FrameView, lp: &LinePoint) -> Option<(f64, f64)> 
         ) {
             return None;
         }
-        let inside = at(x_in);
+        let inside = at(side * 0.6 * r);
         let outside = at(x_out);
-        if inside - outside < 20.0 {
+        if inside - outside < scan.min_contrast {
             return None;
         }
         let level = 0.5 * (inside + outside);
-        // The edge lies near the apparent radius: scan 0.75 R .. 1.35 R.
-        let x_from = side * 0.75 * r;
-        let n = ((0.6 * r) / step) as usize;
+        let x_from = side * scan.from_radii * r;
+        let n = ((scan.span_radii * r) / step) as usize;
         let mut prev = (x_from, at(x_from));
         if prev.1 < level {
             return None;

@@ -708,53 +708,19 @@ fn ring_rows_all(marker: &Marker, margin_mm: f64, step_mm: f64) -> Vec<(f64, boo
 }
 
 /// The silhouette of a full ring across the rod at `lp`, bright (white print) or dark (black
-/// print) against the background: (centre offset along the normal, half width), px. Each
-/// edge is where the profile crosses halfway between the print inside and the background
-/// outside.
+/// print): the careful scan of calibration (0.25 px steps over 0.7 R .. 1.4 R).
 fn ring_silhouette_any(frame: &FrameView, lp: &LinePoint, bright: bool) -> Option<(f64, f64)> {
-    let r = lp.radius_px;
-    let step = 0.25;
-    let sign = if bright { 1.0 } else { -1.0 };
-    let at = |x: f64| {
-        let (px, py) = lp.offset(0.0, x);
-        sign * frame.luma_bilinear(px as f32, py as f32) as f64
-    };
-    let mut edge = [0.0f64; 2];
-    for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
-        let x_out = side * 1.5 * r;
-        if !frame.contains(
-            (lp.x - lp.ty * x_out) as f32,
-            (lp.y + lp.tx * x_out) as f32,
-            1.0,
-        ) {
-            return None;
-        }
-        let inside = at(side * 0.6 * r);
-        let outside = at(x_out);
-        if inside - outside < 12.0 {
-            return None;
-        }
-        let level = 0.5 * (inside + outside);
-        let x_from = side * 0.7 * r;
-        let n = ((0.7 * r) / step) as usize;
-        let mut prev = (x_from, at(x_from));
-        if prev.1 < level {
-            return None;
-        }
-        let mut found = None;
-        for i in 1..=n {
-            let x = x_from + side * step * i as f64;
-            let v = at(x);
-            if prev.1 >= level && v < level {
-                let f = (prev.1 - level) / (prev.1 - v);
-                found = Some(prev.0 + f * (x - prev.0));
-                break;
-            }
-            prev = (x, v);
-        }
-        edge[k] = found?;
-    }
-    Some((0.5 * (edge[0] + edge[1]), 0.5 * (edge[1] - edge[0])))
+    crate::track::ring_silhouette_scan(
+        frame,
+        lp,
+        &crate::track::SilhouetteScan {
+            bright,
+            step_px: 0.25,
+            min_contrast: 12.0,
+            from_radii: 0.7,
+            span_radii: 0.7,
+        },
+    )
 }
 
 /// Measures the silhouette of the marker's rings along its whole length at the reference pose
