@@ -331,48 +331,58 @@ fn software_triggered_pair_gives_synchronised_sets() {
         .collect();
     let results: Vec<Vec<(u64, u64)>> = handles.into_iter().map(|h| h.join().unwrap()).collect();
     let secs = t.elapsed().as_secs_f64();
-    // Group by frame id (= trigger tick).
-    let mut sets: BTreeMap<u64, Vec<u64>> = BTreeMap::new();
+    // Frame ids count each camera's frames: when the fake camera merges two triggers that land
+    // in one of its 40 ms polls (a late trigger thread on a loaded machine), its ids shift
+    // against the other camera's from there on, as a real camera's would after a lost trigger.
+    // So the frames are paired by timestamp, as the runtime does within a trigger window: a
+    // pair is two frames less than half a trigger period (50 ms) apart.
     for cam in &results {
         assert_eq!(cam.len(), n, "each camera delivers its frames");
-        for &(id, ts) in cam {
-            sets.entry(id).or_default().push(ts);
+    }
+    let by_id: BTreeMap<u64, usize> =
+        results
+            .iter()
+            .flatten()
+            .fold(BTreeMap::new(), |mut m, &(id, _)| {
+                *m.entry(id).or_insert(0) += 1;
+                m
+            });
+    let id_mismatches = by_id.values().filter(|&&c| c != 2).count();
+    let mut a: Vec<u64> = results[0].iter().map(|&(_, ts)| ts).collect();
+    let mut b: Vec<u64> = results[1].iter().map(|&(_, ts)| ts).collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    let half_period_ns = 50_000_000u64;
+    let (mut i, mut j) = (0, 0);
+    let mut skews_ms = Vec::new();
+    while i < a.len() && j < b.len() {
+        if a[i].abs_diff(b[j]) < half_period_ns {
+            skews_ms.push(a[i].abs_diff(b[j]) as f64 * 1e-6);
+            i += 1;
+            j += 1;
+        } else if a[i] < b[j] {
+            i += 1;
+        } else {
+            j += 1;
         }
     }
-    for (id, v) in &sets {
-        if v.len() != 2 {
-            eprintln!("\nincomplete set {id}: {v:?}");
-        }
-    }
-    let complete: Vec<&Vec<u64>> = sets.values().filter(|v| v.len() == 2).collect();
-    // Arrival skew of the two frames of a set. The fake camera looks for a pending software
-    // trigger only every 40 ms (a fixed 25 Hz, on wall-clock boundaries) and idles in 100 ms
-    // sleeps before its first frame: a trigger landing on a boundary is answered one poll
-    // later, the first set up to 100 ms later. So: within one poll period after the start.
-    let max_skew_ms = complete
-        .iter()
-        .skip(3)
-        .map(|v| v[0].abs_diff(v[1]) as f64 * 1e-6)
-        .fold(0.0, f64::max);
+    // The fake camera looks for a pending software trigger only every 40 ms (a fixed 25 Hz, on
+    // wall-clock boundaries) and idles in 100 ms sleeps before its first frame: a trigger
+    // landing on a boundary is answered one poll later. So: within one poll period, after the
+    // first sets.
+    let max_skew_ms = skews_ms.iter().skip(3).fold(0.0f64, |m, &s| m.max(s));
     println!(
-        "software-triggered pair at 10 Hz: {} sets, {} complete, max arrival skew {max_skew_ms:.1} ms, {:.1} sets/s",
-        sets.len(),
-        complete.len(),
-        complete.len() as f64 / secs
-    );
-    eprintln!(
-        "pair: {} sets, {} complete, skew {max_skew_ms:.1} ms",
-        sets.len(),
-        complete.len()
+        "software-triggered pair at 10 Hz: {} pairs of {n} triggers, max arrival skew \
+         {max_skew_ms:.1} ms, {:.1} pairs/s; frame ids not in both cameras: {id_mismatches}",
+        skews_ms.len(),
+        skews_ms.len() as f64 / secs
     );
     assert!(
-        complete.len() >= n * 95 / 100,
-        "{} of {n} sets complete",
-        complete.len()
+        skews_ms.len() >= n * 95 / 100,
+        "{} of {n} triggers gave a pair",
+        skews_ms.len()
     );
-    // Both frames of a set answer the same trigger: they arrive less than one trigger period
-    // (100 ms) apart; the fake camera's 40 ms poll usually makes it much less.
-    assert!(max_skew_ms < 100.0, "skew {max_skew_ms} ms");
+    assert!(max_skew_ms < 40.0, "skew {max_skew_ms} ms");
 }
 
 #[test]
