@@ -424,9 +424,10 @@ impl FrameSource for Limit {
 
 /// How long a live camera thread polls the output lock, held by another camera's thread while
 /// it writes (a few us), before it sleeps on it: with 2 cores or more the holder runs
-/// meanwhile, and the poll saves a thread wake-up (`rodtrack bench-latency`: the lock wait's
-/// p99 falls from 25-60 us to under 10 us on a 2-core machine); on 1 core the holder cannot
-/// run while the other polls, so there is no polling.
+/// meanwhile, and the poll saves a thread wake-up (`rodtrack bench-latency` on a 2-core
+/// machine: the lock wait's p99 falls from up to 40-60 us to under 10 us, the max from
+/// milliseconds to about 0.25 ms); on 1 core the holder cannot run while the other polls, so
+/// there is no polling.
 pub const LIVE_SPIN: Duration = Duration::from_micros(30);
 
 /// Pipeline settings for recordings (`live` false) or live sources: for live sources the
