@@ -351,6 +351,43 @@ impl Simulation {
         Ok(self.ctx.marker_status(camera_index, rod, state, &g))
     }
 
+    /// Calibrates camera `camera_index` from its simulated clicks (`seed`) and reference frame,
+    /// rod by rod as `rodtrack calibrate` does (with the camera model in the inputs), at the
+    /// scenario's frame rate. For benchmarks and tests that need a ready calibration.
+    pub fn calibrated_camera(
+        &mut self,
+        camera_index: usize,
+        seed: u64,
+    ) -> Result<rodtrack_core::calib::CameraCalibration, SimError> {
+        let inputs = self.calibration_inputs(camera_index, seed)?;
+        let mut buf = vec![0u8; self.frame_bytes(camera_index)?];
+        let meta = self.render_reference(camera_index, &mut buf)?;
+        let view =
+            rodtrack_core::FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
+        let intrinsics = match &inputs.opencv_model_optional {
+            Some(m) => Some(rodtrack_core::CameraIntrinsics::from_opencv(
+                m.camera_matrix,
+                &m.dist_coeffs,
+            )?),
+            None => None,
+        };
+        let rods = inputs
+            .rods
+            .iter()
+            .map(|r| rodtrack_core::calib::calibrate_rod(r, &view, intrinsics.as_ref()))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(rodtrack_core::calib::CameraCalibration {
+            name: inputs.camera_name.clone(),
+            index: camera_index as u32,
+            image_width: meta.width,
+            image_height: meta.height,
+            pixel_format: meta.format.name().into(),
+            fps: 1.0 / self.timestamp_s(1).max(1e-6),
+            opencv_model: inputs.opencv_model_optional.clone(),
+            rods,
+        })
+    }
+
     /// Calibration inputs (SPEC section 5) for camera `camera_index` with default options;
     /// `seed` drives the click errors.
     pub fn calibration_inputs(

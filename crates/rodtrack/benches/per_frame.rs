@@ -7,8 +7,8 @@
 
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode, RodTracker, Stage};
+use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::{CameraPipeline, FrameView, Mode, RodTracker, Stage};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 use std::time::Duration;
 
@@ -24,29 +24,10 @@ fn setup() -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
         .unwrap()
         .with_frames(25 + FRAMES);
     let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast).unwrap();
-    let inputs = sim.calibration_inputs(0, 7).unwrap();
+    let cal = sim.calibrated_camera(0, 7).unwrap();
     let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
-    let meta = sim.render_reference(0, &mut buf).unwrap();
-    let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-    let m = inputs.opencv_model_optional.as_ref().unwrap();
-    let intr = CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap();
-    let rods = inputs
-        .rods
-        .iter()
-        .map(|r| calibrate_rod(r, &view, Some(&intr)).unwrap())
-        .collect();
-    let cal = CameraCalibration {
-        name: "cam0".into(),
-        index: 0,
-        image_width: meta.width,
-        image_height: meta.height,
-        pixel_format: meta.format.name().into(),
-        fps: 200.0,
-        opencv_model: None,
-        rods,
-    };
     let mut frames = Vec::new();
-    let mut meta = meta;
+    let mut meta = sim.render(25, 0, &mut buf).unwrap();
     for f in 25..25 + FRAMES {
         meta = sim.render(f, 0, &mut buf).unwrap();
         frames.push(buf.clone());

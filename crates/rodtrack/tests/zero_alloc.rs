@@ -5,8 +5,8 @@
 //! This file holds a single test, so no other test's allocations can be counted.
 #![allow(missing_docs, clippy::unwrap_used)]
 
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Mode};
+use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::{CameraPipeline, FrameSetFilter, FrameView, Mode};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -79,28 +79,9 @@ fn cameras(frames: usize) -> Vec<Camera> {
     let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast).unwrap();
     (0..sim.cameras().len())
         .map(|cam| {
-            let inputs = sim.calibration_inputs(cam, 11).unwrap();
+            let calibration = sim.calibrated_camera(cam, 11).unwrap();
             let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
             let meta = sim.render_reference(cam, &mut buf).unwrap();
-            let view =
-                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-            let m = inputs.opencv_model_optional.as_ref().unwrap();
-            let intr = CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap();
-            let rods = inputs
-                .rods
-                .iter()
-                .map(|r| calibrate_rod(r, &view, Some(&intr)).unwrap())
-                .collect();
-            let calibration = CameraCalibration {
-                name: format!("cam{cam}"),
-                index: cam as u32,
-                image_width: meta.width,
-                image_height: meta.height,
-                pixel_format: meta.format.name().into(),
-                fps: 200.0,
-                opencv_model: None,
-                rods,
-            };
             let frames = (0..frames)
                 .map(|f| {
                     sim.render(f, cam, &mut buf).unwrap();
