@@ -5,7 +5,7 @@
 mod runtime_fakes;
 
 use rodtrack_core::{CameraId, PixelFormat, Status};
-use rodtrack_io::runtime::{Grouping, Mode, Pipeline, PipelineConfig};
+use rodtrack_io::runtime::{Grouping, Handoff, Mode, Pipeline, PipelineConfig};
 use rodtrack_io::{read_measurements_csv, CsvSink, FrameSource};
 use runtime_fakes::{tracker, Fake, Writes};
 use std::sync::atomic::Ordering;
@@ -316,29 +316,41 @@ fn groups_by_timestamp_window() {
     }
 }
 
+/// A tracker that panics ends its camera only, run on the camera's own thread (`run`) or on
+/// the capture thread (`Handoff::Inline`, `run_direct`); the rows before are kept.
 #[test]
 fn a_panicking_tracker_ends_its_camera_but_rows_are_kept() {
-    let mut p = Pipeline::new(config(Mode::Batch));
-    p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
-    let mut inner = tracker(Duration::ZERO);
-    p.add_camera(
-        Box::new(Fake::new(0..50)),
-        Box::new(move |meta, view, out| {
-            if meta.frame_id == 20 {
-                panic!("tracker bug");
-            }
-            inner(meta, view, out)
-        }),
-    );
-    let mut sink = Writes::default();
-    let r = p.run(&mut sink).unwrap();
-    assert_eq!(r.cameras[0].frames_processed, 50);
-    assert!(
-        r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
-        "{r:?}"
-    );
-    assert_eq!(sink.0.len(), 50);
-    assert_eq!(r.rows_written, 100 + 40);
+    for (handoff, direct) in [(Handoff::Queue, false), (Handoff::Inline, true)] {
+        let mut p = Pipeline::new(PipelineConfig {
+            mode: Mode::Batch,
+            handoff,
+            ..Default::default()
+        });
+        p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
+        let mut inner = tracker(Duration::ZERO);
+        p.add_camera(
+            Box::new(Fake::new(0..50)),
+            Box::new(move |meta, view, out| {
+                if meta.frame_id == 20 {
+                    panic!("tracker bug");
+                }
+                inner(meta, view, out)
+            }),
+        );
+        let (r, sink) = if direct {
+            p.run_direct(Writes::default()).unwrap()
+        } else {
+            let mut sink = Writes::default();
+            (p.run(&mut sink).unwrap(), sink)
+        };
+        assert_eq!(r.cameras[0].frames_processed, 50, "{handoff:?}");
+        assert!(
+            r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
+            "{handoff:?}: {r:?}"
+        );
+        assert_eq!(sink.0.len(), 50, "{handoff:?}");
+        assert_eq!(r.rows_written, 100 + 40, "{handoff:?}");
+    }
 }
 
 #[test]

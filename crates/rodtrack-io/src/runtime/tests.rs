@@ -43,7 +43,10 @@ fn two_cameras(config: PipelineConfig, direct: bool) -> (PipelineReport, Vec<Vec
     let mut a = Fake::new(0..60);
     a.bad.insert(11);
     p.add_camera(Box::new(a), tracker(Duration::ZERO));
-    p.add_camera(Box::new(Fake::new((0..60).filter(|i| *i != 7))), tracker(Duration::ZERO));
+    p.add_camera(
+        Box::new(Fake::new((0..60).filter(|i| *i != 7))),
+        tracker(Duration::ZERO),
+    );
     p.set_camera_filter(0, times_ten()).unwrap();
     p.set_fusion(fusion());
     if direct {
@@ -266,34 +269,6 @@ fn run_direct_stops_cleanly_and_returns_the_flushed_sink() {
         assert_eq!(rows.len() as u64, r.rows_written, "{handoff:?}");
         assert_eq!(r.rows_written, 2 * processed, "{handoff:?}");
     }
-}
-
-#[test]
-fn a_panicking_tracker_inline_ends_its_camera_only() {
-    let config = PipelineConfig {
-        handoff: Handoff::Inline,
-        ..Default::default()
-    };
-    let mut p = Pipeline::new(config);
-    p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
-    let mut inner = tracker(Duration::ZERO);
-    p.add_camera(
-        Box::new(Fake::new(0..50)),
-        Box::new(move |meta, view, out| {
-            if meta.frame_id == 20 {
-                panic!("tracker bug");
-            }
-            inner(meta, view, out)
-        }),
-    );
-    let (r, sink) = p.run_direct(Writes::default()).unwrap();
-    assert_eq!(r.cameras[0].frames_processed, 50);
-    assert!(
-        r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
-        "{r:?}"
-    );
-    assert_eq!(sink.0.len(), 50);
-    assert_eq!(r.rows_written, 100 + 40);
 }
 
 #[test]
