@@ -151,7 +151,10 @@ fn calibrate_auto_end_to_end() {
         "--seed",
         "1",
     ]);
-    assert!(out.contains("wrote 65 frames (one in 40) x 2 cameras"), "{out}");
+    assert!(
+        out.contains("wrote 65 frames (one in 40) x 2 cameras"),
+        "{out}"
+    );
     ok(&[
         "simulate",
         "--scenario",
@@ -426,7 +429,10 @@ fn opencv_model_files_in_the_inputs(dir: &Path) {
     let inline = v["opencv_model_optional"].clone();
     let o = v.as_object_mut().unwrap();
     o.remove("opencv_model_optional");
-    o.insert("opencv_model_file".into(), "sweep/cam0_intrinsics.yml".into());
+    o.insert(
+        "opencv_model_file".into(),
+        "sweep/cam0_intrinsics.yml".into(),
+    );
     std::fs::write(dir.join("file_model.json"), v.to_string()).unwrap();
     ok(&[
         "calibrate",

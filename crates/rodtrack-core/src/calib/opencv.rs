@@ -1032,7 +1032,10 @@ mod tests {
             height: 1080,
         };
         let text = m.to_file_storage_yaml(size);
-        assert!(text.starts_with("%YAML:1.0\n---\nimage_width: 1440\n"), "{text}");
+        assert!(
+            text.starts_with("%YAML:1.0\n---\nimage_width: 1440\n"),
+            "{text}"
+        );
         assert_eq!(parse_opencv_model(&text).unwrap(), m);
         let root = parse_file_storage(&text).unwrap();
         assert_eq!(
