@@ -301,15 +301,21 @@ fn setup_variations_build_and_render() {
     assert_eq!(ci.rods[0].marker.rod_diameter_mm, 20.0);
 }
 
-#[test]
-fn recording_is_written_and_deterministic() {
+/// Both cameras over `scenario` (seed 9), and a fresh temporary folder `name` to record into.
+fn recording_setup(scenario: &str, name: &str) -> (Simulation, std::path::PathBuf) {
     let scene = SceneConfig::default();
-    let sc = Scenario::by_name("exp3", &scene, 1).unwrap();
-    let dir = std::env::temp_dir().join(format!("rodtrack_sim_rec_{}", std::process::id()));
+    let sc = Scenario::by_name(scenario, &scene, 1).unwrap();
+    let dir = std::env::temp_dir().join(format!("{name}_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let mut s = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
+    let s = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
         .unwrap()
         .with_seed(9);
+    (s, dir)
+}
+
+#[test]
+fn recording_is_written_and_deterministic() {
+    let (mut s, dir) = recording_setup("exp3", "rodtrack_sim_rec");
     let opts = RecordOptions {
         frames: Some(10..13),
         ..RecordOptions::default()
@@ -357,13 +363,7 @@ fn recording_is_written_and_deterministic() {
 /// frames only; the camera models as OpenCV files beside the calibration inputs.
 #[test]
 fn recording_every_kth_frame_keeps_ids_times_and_truth_together() {
-    let scene = SceneConfig::default();
-    let sc = Scenario::by_name("sweep", &scene, 1).unwrap();
-    let dir = std::env::temp_dir().join(format!("rodtrack_sim_every_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let mut s = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
-        .unwrap()
-        .with_seed(3);
+    let (mut s, dir) = recording_setup("sweep", "rodtrack_sim_every");
     let opts = RecordOptions {
         frames: Some(10..15),
         every: std::num::NonZeroUsize::new(2).unwrap(),
@@ -388,7 +388,11 @@ fn recording_every_kth_frame_keeps_ids_times_and_truth_together() {
         assert_eq!(model.dist_coeffs.len(), want.dist_coeffs.len());
         let k = model.camera_matrix.as_flattened();
         let k_want = want.camera_matrix.as_flattened();
-        for (a, b) in k.iter().zip(k_want).chain(model.dist_coeffs.iter().zip(&want.dist_coeffs)) {
+        for (a, b) in k
+            .iter()
+            .zip(k_want)
+            .chain(model.dist_coeffs.iter().zip(&want.dist_coeffs))
+        {
             assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{cam}: {a} {b}");
         }
     }
