@@ -442,6 +442,9 @@ impl Demo {
                 } else {
                     tm.frame_skip_s.push(dt);
                 }
+                // The clock's own cost, in place: an empty interval.
+                let te = Instant::now();
+                tm.empty_s.push(te.elapsed().as_secs_f64());
             }
             let t0 = Instant::now();
             filtered.clear();
@@ -450,9 +453,10 @@ impl Demo {
             let dt = t0.elapsed().as_secs_f64();
             track_s += dt;
             tm.track_s.push(frame_track + dt);
-            // Each camera's rows and the fused ones, in one call.
-            let t1 = Instant::now();
+            // Each camera's rows and the fused ones, in one call (gathering them is the demo's
+            // doing, not the console's: the pipelines hand their rows over as they are).
             rows.extend_from_slice(&filtered);
+            let t1 = Instant::now();
             console.publish_rows(&rows);
             tm.rows_s.push(t1.elapsed().as_secs_f64());
             if k % 50 == 0 {
@@ -466,6 +470,7 @@ impl Demo {
             }
             publish_s += t1.elapsed().as_secs_f64();
         }
+        tm.track_intervals = ncam + 1;
         tm.total_track_s = track_s;
         tm.total_publish_s = publish_s;
         tm
@@ -483,6 +488,11 @@ pub struct Timings {
     pub frame_skip_s: Vec<f64>,
     /// `publish_rows` per frame set (each camera's rows and the fused ones).
     pub rows_s: Vec<f64>,
+    /// Empty intervals timed like the others (right after each frame's publish call): the
+    /// clock's own cost, which every interval above includes once.
+    pub empty_s: Vec<f64>,
+    /// Intervals summed into one frame set's `track_s` (each camera's and the filter's).
+    pub track_intervals: usize,
     /// Wall-clock totals.
     pub total_track_s: f64,
     /// Wall-clock totals of every publish call.
@@ -497,15 +507,32 @@ pub fn median(v: &[f64]) -> f64 {
 }
 
 impl Timings {
+    /// The clock's cost in one timed interval (median empty interval), s.
+    pub fn clock_s(&self) -> f64 {
+        median(&self.empty_s)
+    }
+
+    /// Median of one kind of call with the clock's cost taken out, s.
+    pub fn net(&self, v: &[f64]) -> f64 {
+        (median(v) - self.clock_s()).max(0.0)
+    }
+
+    /// Median tracking time per frame set with the clock's cost of its intervals taken out, s.
+    pub fn track_net(&self) -> f64 {
+        (median(&self.track_s) - self.track_intervals as f64 * self.clock_s()).max(0.0)
+    }
+
     /// The console's share of the tracking time at the camera rate, from the medians of each
-    /// kind of call (robust to the preemption a loaded machine adds to single calls):
-    /// (copies/s x copy + (frames/s - copies/s) x skip + sets/s x rows) / (sets/s x track).
+    /// kind of call (robust to the preemption a loaded machine adds to single calls), each
+    /// with the clock's cost ([`Timings::clock_s`]) taken out of every interval, the tracking's
+    /// included: (copies/s x copy + (frames/s - copies/s) x skip + sets/s x rows) /
+    /// (sets/s x track).
     pub fn share_at(&self, sets_per_s: f64, cameras: f64, copies_per_s: f64) -> f64 {
         let frames_per_s = sets_per_s * cameras;
-        let publish = copies_per_s * median(&self.frame_copy_s)
-            + (frames_per_s - copies_per_s).max(0.0) * median(&self.frame_skip_s)
-            + sets_per_s * median(&self.rows_s);
-        publish / (sets_per_s * median(&self.track_s))
+        let publish = copies_per_s * self.net(&self.frame_copy_s)
+            + (frames_per_s - copies_per_s).max(0.0) * self.net(&self.frame_skip_s)
+            + sets_per_s * self.net(&self.rows_s);
+        publish / (sets_per_s * self.track_net())
     }
 }
 
