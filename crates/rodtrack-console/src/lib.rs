@@ -125,38 +125,116 @@ pub(crate) struct LiveFrame {
     pub encoded: Option<(u64, axum::body::Bytes)>,
 }
 
-/// One camera's slots.
+/// One camera's slots (the console's side: the tracking side reads none of this unless it gives
+/// a frame).
 #[derive(Debug, Default)]
 pub(crate) struct CameraSlot {
-    pub seen: AtomicBool,
-    pub frames: AtomicU64,
-    /// Set by the console when it wants a new live frame, cleared by the tracking side when it
-    /// gives one: the tracking side's whole check is two atomic loads (this and `freeze`), no
-    /// clock.
-    pub want: AtomicBool,
     /// When the console last asked for a live frame (ns since `Shared::started`).
     pub last_request_ns: AtomicU64,
     /// The last live frame was copied ([`ConsoleHandle::publish_frame`]), not swapped in: the
     /// console asks at [`LIVE_COPY_FPS`] instead of [`LIVE_FPS`].
     pub copied: AtomicBool,
-    pub freeze: AtomicBool,
     pub live: Mutex<LiveFrame>,
 }
 
-/// What the plots use of a measurement row, compact (40 bytes instead of a [`Measurement`]'s
-/// 96): the ring is written on the tracking thread, so less is cheaper.
+/// Bit of camera `c`'s "want a live frame" request in [`Requests`]; its freeze request is this
+/// bit shifted by [`FREEZE_SHIFT`].
+const fn want_bit(camera: usize) -> u64 {
+    1 << camera
+}
+/// Shift from a camera's want bit to its freeze bit.
+const FREEZE_SHIFT: usize = 32;
+const WANT_MASK: u64 = (1 << MAX_CAMERAS) - 1;
+const _: () = assert!(MAX_CAMERAS <= FREEZE_SHIFT);
+
+/// The console's requests to the tracking side, every camera's in one word on a cache line of
+/// its own: the tracking side's per-frame check ([`ConsoleHandle::wants_frame`]) is one load of
+/// one line, which the other cameras' checks of the same frame set find in the cache. Bit `c`:
+/// camera `c` should give its next frame for the live view (set by the console at the live
+/// rate, cleared by the tracking side when it gives one); bit `c + FREEZE_SHIFT`: camera `c`
+/// should give its next frame whole for calibration.
+#[derive(Debug, Default)]
+#[repr(align(64))]
+pub(crate) struct Requests {
+    bits: AtomicU64,
+}
+
+impl Requests {
+    /// True when camera `camera` (below [`MAX_CAMERAS`]) should give its next frame. One load.
+    #[inline]
+    fn due(&self, camera: usize) -> bool {
+        let bit = want_bit(camera);
+        self.bits.load(Ordering::Acquire) & (bit | bit << FREEZE_SHIFT) != 0
+    }
+    /// (live frame wanted, freeze pending) of `camera`.
+    fn get(&self, camera: usize) -> (bool, bool) {
+        let (bits, bit) = (self.bits.load(Ordering::Acquire), want_bit(camera));
+        (bits & bit != 0, bits & bit << FREEZE_SHIFT != 0)
+    }
+    pub(crate) fn freeze_pending(&self, camera: usize) -> bool {
+        camera < MAX_CAMERAS && self.get(camera).1
+    }
+    pub(crate) fn request_freeze(&self, camera: usize) {
+        if camera < MAX_CAMERAS {
+            self.bits
+                .fetch_or(want_bit(camera) << FREEZE_SHIFT, Ordering::Release);
+        }
+    }
+    fn request_live(&self, camera: usize) {
+        self.bits.fetch_or(want_bit(camera), Ordering::Release);
+    }
+    fn cancel_live(&self) {
+        self.bits.fetch_and(!WANT_MASK, Ordering::Relaxed);
+    }
+    fn clear(&self, bits: u64) {
+        self.bits.fetch_and(!bits, Ordering::Relaxed);
+    }
+}
+
+/// Frames offered per camera, written only by the tracking side (on a line of their own).
+#[derive(Debug, Default)]
+#[repr(align(64))]
+pub(crate) struct FrameCounts {
+    frames: [AtomicU64; MAX_CAMERAS],
+}
+
+impl FrameCounts {
+    /// Frames of `camera` offered to [`ConsoleHandle::publish_frame`] or
+    /// [`ConsoleHandle::publish_frame_buffer`] (0: the camera was never seen).
+    pub(crate) fn frames(&self, camera: usize) -> u64 {
+        self.frames
+            .get(camera)
+            .map_or(0, |f| f.load(Ordering::Relaxed))
+    }
+    pub(crate) fn seen(&self, camera: usize) -> bool {
+        self.frames(camera) > 0
+    }
+    fn count(&self, camera: usize) {
+        if let Some(f) = self.frames.get(camera) {
+            f.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// What the plots use of a measurement row, compact (32 bytes, aligned so that two fill a cache
+/// line, instead of a [`Measurement`]'s 96): the ring is written on the tracking thread, so less
+/// is cheaper.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(32))]
 pub(crate) struct PlotRow {
     pub timestamp_s: f64,
     pub angle_unwrapped_rad: f64,
     pub position_mm: f32,
     pub angle_rad: f32,
     pub quality: f32,
-    pub rod: u32,
-    /// Camera index, -1 for fused rows.
-    pub camera: i32,
+    /// Rod index (saturated at `u16::MAX`).
+    pub rod: u16,
+    /// Camera index (saturated at `i8::MAX`), -1 for fused rows.
+    pub camera: i8,
     pub status: rodtrack_core::Status,
 }
+
+const _: () = assert!(std::mem::size_of::<PlotRow>() == 32);
 
 impl PlotRow {
     const EMPTY: PlotRow = PlotRow {
@@ -177,9 +255,9 @@ impl PlotRow {
             position_mm: m.position_mm as f32,
             angle_rad: m.angle_rad as f32,
             quality: m.quality as f32,
-            rod: m.rod,
+            rod: u16::try_from(m.rod).unwrap_or(u16::MAX),
             camera: match m.camera {
-                rodtrack_core::CameraId::Camera(c) => c as i32,
+                rodtrack_core::CameraId::Camera(c) => i8::try_from(c).unwrap_or(i8::MAX),
                 rodtrack_core::CameraId::Fused => -1,
             },
             status: m.status,
@@ -206,6 +284,16 @@ impl RowRing {
     }
 }
 
+/// The publish calls' own accounting ([`PublishOverhead`]), written by the tracking side only,
+/// on a line of its own.
+#[derive(Debug, Default)]
+#[repr(align(64))]
+pub(crate) struct Spent {
+    calls: AtomicU64,
+    total_ns: AtomicU64,
+    max_ns: AtomicU64,
+}
+
 /// Everything the tracking side and the console share.
 #[derive(Debug)]
 pub(crate) struct Shared {
@@ -213,15 +301,17 @@ pub(crate) struct Shared {
     pub clients: AtomicUsize,
     pub frame_interval_ns: u64,
     pub copy_interval_ns: u64,
+    /// The console's requests, read by the tracking side for every frame.
+    pub requests: Requests,
+    /// Frames offered per camera.
+    pub counts: FrameCounts,
     pub cameras: Vec<CameraSlot>,
     pub rows: Mutex<RowRing>,
     /// Rows published while the console held `rows` (only publishers lock this one).
     pub waiting_rows: Mutex<Vec<PlotRow>>,
     pub rows_waiting: AtomicBool,
     pub stats: Mutex<Option<PipelineStats>>,
-    pub calls: AtomicU64,
-    pub total_ns: AtomicU64,
-    pub max_ns: AtomicU64,
+    pub spent: Spent,
     pub calib: Mutex<CalibState>,
 }
 
@@ -235,7 +325,7 @@ impl Shared {
     /// however many clients).
     pub(crate) fn request_live_frames(&self) {
         let now = self.now_ns();
-        for slot in &self.cameras {
+        for (camera, slot) in self.cameras.iter().enumerate() {
             let last = slot.last_request_ns.load(Ordering::Relaxed);
             let interval = if slot.copied.load(Ordering::Relaxed) {
                 self.copy_interval_ns
@@ -248,46 +338,31 @@ impl Shared {
                     .compare_exchange(last, now, Ordering::Relaxed, Ordering::Relaxed)
                     .is_ok()
             {
-                slot.want.store(true, Ordering::Release);
+                self.requests.request_live(camera);
             }
         }
     }
 
     /// The console's side: no client is left, no live frames are wanted.
     pub(crate) fn cancel_live_frames(&self) {
-        for slot in &self.cameras {
-            slot.want.store(false, Ordering::Relaxed);
-        }
-    }
-
-    /// True when the console wants `slot`'s next frame: a live frame was requested or a freeze
-    /// is pending. Two atomic loads.
-    fn due(slot: &CameraSlot) -> bool {
-        slot.want.load(Ordering::Acquire) || slot.freeze.load(Ordering::Relaxed)
-    }
-
-    /// Counts a frame offered by the tracking side.
-    fn count_frame(slot: &CameraSlot) {
-        if !slot.seen.load(Ordering::Relaxed) {
-            slot.seen.store(true, Ordering::Relaxed);
-        }
-        slot.frames.fetch_add(1, Ordering::Relaxed);
+        self.requests.cancel_live();
     }
 
     fn account(&self, t0: Instant) {
         let ns = t0.elapsed().as_nanos() as u64;
-        self.calls.fetch_add(1, Ordering::Relaxed);
-        self.total_ns.fetch_add(ns, Ordering::Relaxed);
-        if ns > self.max_ns.load(Ordering::Relaxed) {
-            self.max_ns.fetch_max(ns, Ordering::Relaxed);
+        let spent = &self.spent;
+        spent.calls.fetch_add(1, Ordering::Relaxed);
+        spent.total_ns.fetch_add(ns, Ordering::Relaxed);
+        if ns > spent.max_ns.load(Ordering::Relaxed) {
+            spent.max_ns.fetch_max(ns, Ordering::Relaxed);
         }
     }
 
     pub(crate) fn overhead(&self) -> PublishOverhead {
         PublishOverhead {
-            calls: self.calls.load(Ordering::Relaxed),
-            total_ns: self.total_ns.load(Ordering::Relaxed),
-            max_ns: self.max_ns.load(Ordering::Relaxed),
+            calls: self.spent.calls.load(Ordering::Relaxed),
+            total_ns: self.spent.total_ns.load(Ordering::Relaxed),
+            max_ns: self.spent.max_ns.load(Ordering::Relaxed),
         }
     }
 }
@@ -324,6 +399,8 @@ impl Console {
             clients: AtomicUsize::new(0),
             frame_interval_ns: (1e9 / LIVE_FPS) as u64,
             copy_interval_ns: (1e9 / LIVE_COPY_FPS) as u64,
+            requests: Requests::default(),
+            counts: FrameCounts::default(),
             cameras: (0..MAX_CAMERAS).map(|_| CameraSlot::default()).collect(),
             rows: Mutex::new(RowRing {
                 buf: ring,
@@ -332,9 +409,7 @@ impl Console {
             waiting_rows: Mutex::new(Vec::new()),
             rows_waiting: AtomicBool::new(false),
             stats: Mutex::new(None),
-            calls: AtomicU64::new(0),
-            total_ns: AtomicU64::new(0),
-            max_ns: AtomicU64::new(0),
+            spent: Spent::default(),
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
         });
         let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -398,12 +473,12 @@ impl ConsoleHandle {
 
     /// True when the next [`ConsoleHandle::publish_frame`] of `camera` would copy the frame
     /// (a browser is connected and asked for a live frame, a few times per second, or a freeze
-    /// is pending): compute the overlays only then. Two atomic loads.
+    /// is pending): compute the overlays only then. One atomic load, of a word every camera's
+    /// requests share.
+    #[inline]
     pub fn wants_frame(&self, camera: u32) -> bool {
-        let Some(slot) = self.shared.cameras.get(camera as usize) else {
-            return false;
-        };
-        Shared::due(slot)
+        let camera = camera as usize;
+        camera < MAX_CAMERAS && self.shared.requests.due(camera)
     }
 
     /// Offers one camera's frame with its overlays. Cheap: it counts the frame and returns,
@@ -420,21 +495,26 @@ impl ConsoleHandle {
         overlays: &[RodOverlay],
     ) {
         let sh = &self.shared;
-        let Some(slot) = sh.cameras.get(camera as usize) else {
+        let c = camera as usize;
+        if c >= MAX_CAMERAS {
             return;
-        };
-        Shared::count_frame(slot);
-        if !Shared::due(slot) {
+        }
+        sh.counts.count(c);
+        if !sh.requests.due(c) {
             return;
         }
         let t0 = Instant::now();
-        if slot.freeze.load(Ordering::Relaxed) {
+        let Some(slot) = sh.cameras.get(c) else {
+            return;
+        };
+        let (want, freeze) = sh.requests.get(c);
+        if freeze {
             if let Ok(mut cal) = sh.calib.try_lock() {
                 cal.freeze(camera, OwnedFrame::from_view(frame, frame_id, timestamp_s));
-                slot.freeze.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c) << FREEZE_SHIFT);
             }
         }
-        if slot.want.load(Ordering::Acquire) {
+        if want {
             if let Ok(mut live) = slot.live.try_lock() {
                 let d = live_decimation(frame.width(), frame.format());
                 live.raw.copy_decimated(frame, d, frame_id, timestamp_s);
@@ -443,7 +523,7 @@ impl ConsoleHandle {
                 live.overlays.clear();
                 live.overlays.extend_from_slice(overlays);
                 live.seq += 1;
-                slot.want.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c));
                 slot.copied.store(true, Ordering::Relaxed);
             }
         }
@@ -468,25 +548,30 @@ impl ConsoleHandle {
         overlays: &[RodOverlay],
     ) -> bool {
         let sh = &self.shared;
-        let Some(slot) = sh.cameras.get(camera as usize) else {
+        let c = camera as usize;
+        if c >= MAX_CAMERAS {
             return false;
-        };
-        Shared::count_frame(slot);
-        if !Shared::due(slot) {
+        }
+        sh.counts.count(c);
+        if !sh.requests.due(c) {
             return false;
         }
         let t0 = Instant::now();
-        if slot.freeze.load(Ordering::Relaxed) {
+        let Some(slot) = sh.cameras.get(c) else {
+            return false;
+        };
+        let (want, freeze) = sh.requests.get(c);
+        if freeze {
             if let (Ok(view), Ok(mut cal)) = (
                 FrameView::new(buf, width, height, stride, format),
                 sh.calib.try_lock(),
             ) {
                 cal.freeze(camera, OwnedFrame::from_view(&view, frame_id, timestamp_s));
-                slot.freeze.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c) << FREEZE_SHIFT);
             }
         }
         let mut taken = false;
-        if slot.want.load(Ordering::Acquire) {
+        if want {
             if let Ok(mut live) = slot.live.try_lock() {
                 if live
                     .raw
@@ -498,7 +583,7 @@ impl ConsoleHandle {
                     live.overlays.clear();
                     live.overlays.extend_from_slice(overlays);
                     live.seq += 1;
-                    slot.want.store(false, Ordering::Relaxed);
+                    sh.requests.clear(want_bit(c));
                     slot.copied.store(false, Ordering::Relaxed);
                     taken = true;
                 }

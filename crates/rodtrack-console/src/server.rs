@@ -136,8 +136,8 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         .cameras
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.seen.load(Ordering::Relaxed))
-        .map(|(i, s)| json!({ "index": i, "frames": s.frames.load(Ordering::Relaxed) }))
+        .filter(|(i, _)| sh.counts.seen(*i))
+        .map(|(i, _)| json!({ "index": i, "frames": sh.counts.frames(i) }))
         .collect();
     let stats = *lock(&sh.stats);
     json!({
@@ -174,10 +174,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
                 width: f.width(),
                 height: f.height(),
             });
-            let pending = sh
-                .cameras
-                .get(c.index as usize)
-                .is_some_and(|s| s.freeze.load(Ordering::Relaxed));
+            let pending = sh.requests.freeze_pending(c.index as usize);
             json!({
                 "index": c.index,
                 "name": c.inputs.camera_name,
@@ -193,7 +190,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
         .cameras
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.seen.load(Ordering::Relaxed))
+        .filter(|(i, _)| sh.counts.seen(*i))
         .map(|(i, _)| i)
         .collect();
     json!({
@@ -213,16 +210,14 @@ async fn freeze(
     State(st): State<AppState>,
     Path(cam): Path<u32>,
 ) -> ApiResult<Json<serde_json::Value>> {
-    let slot = st
-        .shared
-        .cameras
-        .get(cam as usize)
-        .filter(|s| s.seen.load(Ordering::Relaxed))
-        .ok_or(ConsoleError::Camera {
+    if !st.shared.counts.seen(cam as usize) {
+        return Err(ConsoleError::Camera {
             camera: cam,
             reason: "no live frames to freeze".into(),
-        })?;
-    slot.freeze.store(true, Ordering::Relaxed);
+        }
+        .into());
+    }
+    st.shared.requests.request_freeze(cam as usize);
     Ok(Json(json!({ "freeze_pending": true })))
 }
 
@@ -635,7 +630,7 @@ async fn client(mut socket: WebSocket, st: AppState) {
             }
         }
         for (cam, slot) in sh.cameras.iter().enumerate() {
-            if !slot.seen.load(Ordering::Relaxed) {
+            if !sh.counts.seen(cam) {
                 continue;
             }
             let msg = {
