@@ -37,6 +37,7 @@ pub mod calib;
 pub mod error;
 pub mod image;
 pub mod overlay;
+pub(crate) mod rows;
 pub mod server;
 
 pub use calib::{CalibrationContext, CameraSetup, RodOutcome, Saved};
@@ -46,11 +47,11 @@ pub use overlay::{overlays_for, BitOverlay, MarkerOverlay, RodOverlay};
 
 use calib::CalibState;
 use rodtrack_core::{FrameView, Measurement};
+use rows::RowRing;
 use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, TryLockError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The default address: loopback only.
@@ -216,74 +217,6 @@ impl FrameCounts {
     }
 }
 
-/// What the plots use of a measurement row, compact (32 bytes, aligned so that two fill a cache
-/// line, instead of a [`Measurement`]'s 96): the ring is written on the tracking thread, so less
-/// is cheaper.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C, align(32))]
-pub(crate) struct PlotRow {
-    pub timestamp_s: f64,
-    pub angle_unwrapped_rad: f64,
-    pub position_mm: f32,
-    pub angle_rad: f32,
-    pub quality: f32,
-    /// Rod index (saturated at `u16::MAX`).
-    pub rod: u16,
-    /// Camera index (saturated at `i8::MAX`), -1 for fused rows.
-    pub camera: i8,
-    pub status: rodtrack_core::Status,
-}
-
-const _: () = assert!(std::mem::size_of::<PlotRow>() == 32);
-
-impl PlotRow {
-    const EMPTY: PlotRow = PlotRow {
-        timestamp_s: 0.0,
-        angle_unwrapped_rad: 0.0,
-        position_mm: 0.0,
-        angle_rad: 0.0,
-        quality: 0.0,
-        rod: 0,
-        camera: -1,
-        status: rodtrack_core::Status::Lost,
-    };
-
-    fn new(m: &Measurement) -> PlotRow {
-        PlotRow {
-            timestamp_s: m.timestamp_s,
-            angle_unwrapped_rad: m.angle_unwrapped_rad,
-            position_mm: m.position_mm as f32,
-            angle_rad: m.angle_rad as f32,
-            quality: m.quality as f32,
-            rod: u16::try_from(m.rod).unwrap_or(u16::MAX),
-            camera: match m.camera {
-                rodtrack_core::CameraId::Camera(c) => i8::try_from(c).unwrap_or(i8::MAX),
-                rodtrack_core::CameraId::Fused => -1,
-            },
-            status: m.status,
-        }
-    }
-}
-
-/// The rows ring buffer: row `i` of `buf` has sequence number `next_seq - buf.len() + i`.
-#[derive(Debug, Default)]
-pub(crate) struct RowRing {
-    pub buf: VecDeque<PlotRow>,
-    pub next_seq: u64,
-}
-
-impl RowRing {
-    /// Appends rows, dropping the oldest beyond [`ROW_CAPACITY`].
-    fn push<I: ExactSizeIterator<Item = PlotRow>>(&mut self, rows: I) {
-        let n = rows.len();
-        let skip = n.saturating_sub(ROW_CAPACITY);
-        let over = (self.buf.len() + n - skip).saturating_sub(ROW_CAPACITY);
-        self.buf.drain(..over);
-        self.buf.extend(rows.skip(skip));
-        self.next_seq += n as u64;
-    }
-}
-
 /// The publish calls' own accounting ([`PublishOverhead`]), written by the tracking side only,
 /// on a line of its own.
 #[derive(Debug, Default)]
@@ -306,10 +239,7 @@ pub(crate) struct Shared {
     /// Frames offered per camera.
     pub counts: FrameCounts,
     pub cameras: Vec<CameraSlot>,
-    pub rows: Mutex<RowRing>,
-    /// Rows published while the console held `rows` (only publishers lock this one).
-    pub waiting_rows: Mutex<Vec<PlotRow>>,
-    pub rows_waiting: AtomicBool,
+    pub rows: RowRing,
     pub stats: Mutex<Option<PipelineStats>>,
     pub spent: Spent,
     pub calib: Mutex<CalibState>,
@@ -359,10 +289,11 @@ impl Shared {
     }
 
     pub(crate) fn overhead(&self) -> PublishOverhead {
+        let (calls, total_ns, max_ns) = self.rows.spent();
         PublishOverhead {
-            calls: self.spent.calls.load(Ordering::Relaxed),
-            total_ns: self.spent.total_ns.load(Ordering::Relaxed),
-            max_ns: self.spent.max_ns.load(Ordering::Relaxed),
+            calls: self.spent.calls.load(Ordering::Relaxed) + calls,
+            total_ns: self.spent.total_ns.load(Ordering::Relaxed) + total_ns,
+            max_ns: self.spent.max_ns.load(Ordering::Relaxed).max(max_ns),
         }
     }
 }
@@ -388,11 +319,6 @@ impl Console {
         let local = listener
             .local_addr()
             .map_err(|source| ConsoleError::Bind { addr, source })?;
-        // The rows' ring is allocated and touched once, here: growing it (or faulting its pages
-        // in) would happen under the lock the tracking side takes.
-        let mut ring = VecDeque::with_capacity(ROW_CAPACITY);
-        ring.resize(ROW_CAPACITY, PlotRow::EMPTY);
-        ring.clear();
         let started = Instant::now();
         let shared = Arc::new(Shared {
             started,
@@ -402,12 +328,7 @@ impl Console {
             requests: Requests::default(),
             counts: FrameCounts::default(),
             cameras: (0..MAX_CAMERAS).map(|_| CameraSlot::default()).collect(),
-            rows: Mutex::new(RowRing {
-                buf: ring,
-                next_seq: 0,
-            }),
-            waiting_rows: Mutex::new(Vec::new()),
-            rows_waiting: AtomicBool::new(false),
+            rows: RowRing::new(),
             stats: Mutex::new(None),
             spent: Spent::default(),
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
@@ -594,41 +515,16 @@ impl ConsoleHandle {
     }
 
     /// Appends measurement rows (any cameras, fused included) to the plots' ring buffer; the
-    /// oldest rows are dropped when it is full. Never waits for the console: when the console
-    /// is copying rows out of the ring (or was preempted doing so), the rows wait in a side
-    /// buffer that only publishers lock, and go into the ring with the next call.
+    /// oldest rows are overwritten when it is full. Never waits for the console and takes no
+    /// lock: the rows are packed into the ring's preallocated slots and made visible with one
+    /// store (several threads may publish; each waits only for those that claimed rows before
+    /// it to finish writing them).
     pub fn publish_rows(&self, rows: &[Measurement]) {
         if rows.is_empty() {
             return;
         }
         let t0 = Instant::now();
-        let sh = &self.shared;
-        let ring = match sh.rows.try_lock() {
-            Ok(g) => Some(g),
-            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
-            Err(TryLockError::WouldBlock) => None,
-        };
-        match ring {
-            Some(mut ring) => {
-                if sh.rows_waiting.load(Ordering::Acquire) {
-                    if let Ok(mut waiting) = sh.waiting_rows.lock() {
-                        ring.push(waiting.drain(..));
-                        sh.rows_waiting.store(false, Ordering::Release);
-                    }
-                }
-                ring.push(rows.iter().map(PlotRow::new));
-            }
-            None => {
-                if let Ok(mut waiting) = sh.waiting_rows.lock() {
-                    let over = (waiting.len() + rows.len()).saturating_sub(ROW_CAPACITY);
-                    let len = waiting.len();
-                    waiting.drain(..over.min(len));
-                    waiting.extend(rows.iter().map(PlotRow::new));
-                    sh.rows_waiting.store(true, Ordering::Release);
-                }
-            }
-        }
-        sh.account(t0);
+        self.shared.rows.publish(rows, t0);
     }
 
     /// Replaces the pipeline's counters shown on the page.
@@ -680,51 +576,6 @@ impl Drop for ConsoleHandle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rodtrack_core::{CameraId, Status};
-
-    fn rows(t: f64, n: u32) -> Vec<Measurement> {
-        (0..n)
-            .map(|rod| Measurement::empty(1, t, CameraId::Camera(0), rod, Status::Ok))
-            .collect()
-    }
-
-    #[test]
-    fn rows_never_wait_for_the_console() {
-        let console = Console::start("127.0.0.1:0".parse().unwrap(), None).unwrap();
-        let sh = console.shared.clone();
-        {
-            // The console is copying rows out: publishing does not wait for it.
-            let _held = sh.rows.lock().unwrap();
-            console.publish_rows(&rows(1.0, 3));
-            console.publish_rows(&rows(2.0, 2));
-            assert!(sh.rows_waiting.load(Ordering::Relaxed));
-        }
-        console.publish_rows(&rows(3.0, 1));
-        assert!(!sh.rows_waiting.load(Ordering::Relaxed));
-        let ring = sh.rows.lock().unwrap();
-        assert_eq!(ring.next_seq, 6);
-        let t: Vec<f64> = ring.buf.iter().map(|r| r.timestamp_s).collect();
-        assert_eq!(t, [1.0, 1.0, 1.0, 2.0, 2.0, 3.0]);
-    }
-
-    #[test]
-    fn the_ring_keeps_the_newest_rows() {
-        let mut ring = RowRing::default();
-        let row = |t: f64| PlotRow {
-            timestamp_s: t,
-            ..PlotRow::EMPTY
-        };
-        ring.push((0..ROW_CAPACITY - 1).map(|i| row(i as f64)));
-        ring.push((0..3).map(|i| row(1e6 + i as f64)));
-        assert_eq!(ring.buf.len(), ROW_CAPACITY);
-        assert_eq!(ring.next_seq, ROW_CAPACITY as u64 + 2);
-        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(2.0));
-        assert_eq!(ring.buf.back().map(|r| r.timestamp_s), Some(1e6 + 2.0));
-        // More than the ring holds at once: the last ROW_CAPACITY.
-        ring.push((0..ROW_CAPACITY + 5).map(|i| row(i as f64)));
-        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(5.0));
-        assert_eq!(ring.next_seq, 2 * ROW_CAPACITY as u64 + 7);
-    }
 
     #[test]
     fn live_frames_are_decimated_to_the_live_width() {
