@@ -62,14 +62,14 @@ fn options() -> Options {
 }
 
 /// One path's run, times in s: [share of the tracking time, tracking per set, live frame call,
-/// skipped frame, `publish_rows` per set, the clock's cost in one interval]; calls and tracking
-/// are medians net of the clock's cost.
+/// skipped frame (mean of the cameras' medians), `publish_rows` per set, the clock's cost in one
+/// interval]; calls and tracking are medians net of the clock's cost.
 fn summarise(tm: &Timings, cameras: f64, live_fps: f64) -> [f64; 6] {
     [
         tm.share_at(SETS_PER_S, cameras, cameras * live_fps),
         tm.track_net(),
         tm.net(&tm.frame_copy_s),
-        tm.net(&tm.frame_skip_s),
+        tm.skip_net(),
         tm.net(&tm.rows_s),
         tm.clock_s(),
     ]

@@ -85,16 +85,19 @@ impl PlotRow {
     }
 }
 
+const _: () = assert!(std::mem::size_of::<RowRing>() == 64);
+
 /// One row's slot.
 #[derive(Debug, Default)]
 #[repr(align(32))]
 struct Slot([AtomicU64; 4]);
 
-/// The publishers' line: written by the tracking side only (the console reads it a few dozen
-/// times per second).
-#[derive(Debug, Default)]
+/// The rows ring: row `seq` lives in slot `seq % ROW_CAPACITY` until it is overwritten by row
+/// `seq + ROW_CAPACITY`. Everything a publisher touches besides the slots is on this one line,
+/// written by the tracking side only (the console reads it a few dozen times per second).
+#[derive(Debug)]
 #[repr(align(64))]
-struct Head {
+pub(crate) struct RowRing {
     /// Rows claimed by publishers (the next row's sequence number).
     claimed: AtomicU64,
     /// Rows written: every row before this sequence number is in its slot.
@@ -104,13 +107,6 @@ struct Head {
     calls: AtomicU64,
     total_ns: AtomicU64,
     max_ns: AtomicU64,
-}
-
-/// The rows ring: row `seq` lives in slot `seq % ROW_CAPACITY` until it is overwritten by row
-/// `seq + ROW_CAPACITY`.
-#[derive(Debug)]
-pub(crate) struct RowRing {
-    head: Head,
     slots: Box<[Slot]>,
 }
 
@@ -119,7 +115,11 @@ impl RowRing {
     /// happen on the tracking thread).
     pub(crate) fn new() -> RowRing {
         RowRing {
-            head: Head::default(),
+            claimed: AtomicU64::new(0),
+            published: AtomicU64::new(0),
+            calls: AtomicU64::new(0),
+            total_ns: AtomicU64::new(0),
+            max_ns: AtomicU64::new(0),
             slots: (0..ROW_CAPACITY).map(|_| Slot::default()).collect(),
         }
     }
@@ -129,7 +129,7 @@ impl RowRing {
     /// them. `t0` is when the publish call started: the call's time is accounted for here.
     pub(crate) fn publish(&self, rows: &[Measurement], t0: Instant) {
         let n = rows.len() as u64;
-        let start = self.head.claimed.fetch_add(n, Ordering::Relaxed);
+        let start = self.claimed.fetch_add(n, Ordering::Relaxed);
         // Orders the claim before the slots' stores, as the console's acquire fence sees them.
         fence(Ordering::Release);
         // Only the last ROW_CAPACITY rows of a huge call survive: write only those.
@@ -141,12 +141,12 @@ impl RowRing {
             }
         }
         // In claim order: wait for the publishers that claimed earlier rows.
-        while self.head.published.load(Ordering::Acquire) != start {
+        while self.published.load(Ordering::Acquire) != start {
             std::thread::yield_now();
         }
         // Our turn: no other publisher gets here before `published` moves on.
         let ns = t0.elapsed().as_nanos() as u64;
-        let h = &self.head;
+        let h = self;
         h.calls
             .store(h.calls.load(Ordering::Relaxed) + 1, Ordering::Relaxed);
         h.total_ns
@@ -159,12 +159,12 @@ impl RowRing {
 
     /// The rows published so far (the next row's sequence number).
     pub(crate) fn published(&self) -> u64 {
-        self.head.published.load(Ordering::Acquire)
+        self.published.load(Ordering::Acquire)
     }
 
     /// (calls, total ns, longest ns) of [`RowRing::publish`].
     pub(crate) fn spent(&self) -> (u64, u64, u64) {
-        let h = &self.head;
+        let h = self;
         (
             h.calls.load(Ordering::Relaxed),
             h.total_ns.load(Ordering::Relaxed),
@@ -196,11 +196,7 @@ impl RowRing {
         }
         // Rows a publisher may have started overwriting while they were copied are dropped.
         fence(Ordering::Acquire);
-        let intact_from = self
-            .head
-            .claimed
-            .load(Ordering::Relaxed)
-            .saturating_sub(cap);
+        let intact_from = self.claimed.load(Ordering::Relaxed).saturating_sub(cap);
         if intact_from > from {
             let lost = (intact_from - from).min(to - from) as usize;
             out.drain(first..first + lost);
@@ -286,8 +282,7 @@ mod tests {
         let ring = RowRing::new();
         ring.publish(&rows(1.0, 8), Instant::now());
         // A publisher has claimed (and may be writing) the slots of rows 0..3.
-        ring.head
-            .claimed
+        ring.claimed
             .fetch_add(ROW_CAPACITY as u64 - 8 + 3, Ordering::Relaxed);
         let mut out = Vec::new();
         assert_eq!(ring.read(0, 100, &mut out), 8);

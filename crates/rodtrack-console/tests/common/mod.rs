@@ -441,6 +441,7 @@ impl Demo {
                     tm.frame_copy_s.push(dt);
                 } else {
                     tm.frame_skip_s.push(dt);
+                    tm.frame_skip_camera.push(c);
                 }
                 // The clock's own cost, in place: an empty interval.
                 let te = Instant::now();
@@ -486,6 +487,8 @@ pub struct Timings {
     pub frame_copy_s: Vec<f64>,
     /// Frames it did not want: the `wants_frame` check only.
     pub frame_skip_s: Vec<f64>,
+    /// The camera of each `frame_skip_s`.
+    pub frame_skip_camera: Vec<usize>,
     /// `publish_rows` per frame set (each camera's rows and the fused ones).
     pub rows_s: Vec<f64>,
     /// Empty intervals timed like the others (right after each frame's publish call): the
@@ -517,20 +520,42 @@ impl Timings {
         (median(v) - self.clock_s()).max(0.0)
     }
 
+    /// A skipped frame's cost: the mean over the cameras of each camera's median skip, net of
+    /// the clock's cost, s. (The cameras' checks differ: the first of a frame set may find
+    /// the console's lines out of the cache, the next ones in it; one median over all of them
+    /// would pick one kind or the other.)
+    pub fn skip_net(&self) -> f64 {
+        let cameras = self.frame_skip_camera.iter().max().map_or(0, |c| c + 1);
+        let per_camera: Vec<f64> = (0..cameras)
+            .map(|c| {
+                let v: Vec<f64> = self
+                    .frame_skip_s
+                    .iter()
+                    .zip(&self.frame_skip_camera)
+                    .filter(|(_, k)| **k == c)
+                    .map(|(s, _)| *s)
+                    .collect();
+                (median(&v) - self.clock_s()).max(0.0)
+            })
+            .collect();
+        per_camera.iter().sum::<f64>() / per_camera.len().max(1) as f64
+    }
+
     /// Median tracking time per frame set with the clock's cost of its intervals taken out, s.
     pub fn track_net(&self) -> f64 {
         (median(&self.track_s) - self.track_intervals as f64 * self.clock_s()).max(0.0)
     }
 
     /// The console's share of the tracking time at the camera rate, from the medians of each
-    /// kind of call (robust to the preemption a loaded machine adds to single calls), each
+    /// kind of call (robust to the preemption a loaded machine adds to single calls; skipped
+    /// frames: [`Timings::skip_net`]), each
     /// with the clock's cost ([`Timings::clock_s`]) taken out of every interval, the tracking's
     /// included: (copies/s x copy + (frames/s - copies/s) x skip + sets/s x rows) /
     /// (sets/s x track).
     pub fn share_at(&self, sets_per_s: f64, cameras: f64, copies_per_s: f64) -> f64 {
         let frames_per_s = sets_per_s * cameras;
         let publish = copies_per_s * self.net(&self.frame_copy_s)
-            + (frames_per_s - copies_per_s).max(0.0) * self.net(&self.frame_skip_s)
+            + (frames_per_s - copies_per_s).max(0.0) * self.skip_net()
             + sets_per_s * self.net(&self.rows_s);
         publish / (sets_per_s * self.track_net())
     }
