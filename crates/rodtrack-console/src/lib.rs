@@ -26,9 +26,9 @@
 //! at its own pace. The time spent inside the publish calls is measured
 //! ([`ConsoleHandle::overhead`]); their share of the tracking time is the `overhead` bench
 //! (`cargo bench -p rodtrack-console --bench overhead -- --runs 9`): about 0.8 % with swapped
-//! live frames and 1.9 % with copied ones, most of it the copy itself (about 90 us, bound by
+//! live frames and 1.9-2.0 % with copied ones, most of it the copy itself (90-110 us, bound by
 //! memory bandwidth: it reads half the rows of a 1440x1080 Bayer frame, the fewest a 360x270
-//! colour preview needs).
+//! colour preview needs, into a buffer last written half a second earlier).
 //!
 //! # API
 //! - [`Console::start`]`(addr, Option<CalibrationContext>) -> Result<ConsoleHandle>`
