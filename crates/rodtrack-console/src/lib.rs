@@ -53,7 +53,10 @@ pub mod server;
 pub use calib::{CalibrationContext, CameraSetup, RodOutcome, Saved};
 pub use error::ConsoleError;
 pub use image::{preview, OwnedFrame, Preview};
-pub use overlay::{overlays_for, BitOverlay, MarkerOverlay, RodOverlay};
+pub use overlay::{
+    overlays_for, BitOverlay, BitOverlays, CameraOverlays, LinePx, MarkerOverlay, RodGeometry,
+    RodOverlay,
+};
 
 use calib::CalibState;
 use rodtrack_core::{FrameView, Measurement};
@@ -451,8 +454,7 @@ impl ConsoleHandle {
                 live.raw.copy_decimated(frame, d, frame_id, timestamp_s);
                 live.decimation = d;
                 live.full_size = (frame.width(), frame.height());
-                live.overlays.clear();
-                live.overlays.extend_from_slice(overlays);
+                overlays.clone_into(&mut live.overlays);
                 live.seq += 1;
                 sh.requests.clear(want_bit(c));
                 slot.copied.store(true, Ordering::Relaxed);
@@ -511,8 +513,7 @@ impl ConsoleHandle {
                 {
                     live.decimation = 1;
                     live.full_size = (width, height);
-                    live.overlays.clear();
-                    live.overlays.extend_from_slice(overlays);
+                    overlays.clone_into(&mut live.overlays);
                     live.seq += 1;
                     sh.requests.clear(want_bit(c));
                     slot.copied.store(false, Ordering::Relaxed);

@@ -69,7 +69,7 @@ fn page_shows_frames_and_plots_and_clicks_become_calibration_points() {
                     rod: 0,
                     status: Status::Ok,
                     reason: "",
-                    line_px: vec![[100.0, 20.0], [120.0, 460.0]],
+                    line_px: vec![[100.0, 20.0], [120.0, 460.0]].into(),
                     marker: None,
                     position_mm: 1.0,
                     angle_rad: 0.5,

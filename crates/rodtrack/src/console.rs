@@ -5,7 +5,7 @@ use crate::calibration_io::read_inputs;
 use crate::simulate::build;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{
-    overlays_for, CalibrationContext, CameraSetup, Console, ConsoleHandle, OwnedFrame,
+    CalibrationContext, CameraOverlays, CameraSetup, Console, ConsoleHandle, OwnedFrame,
     PipelineStats, RodOverlay,
 };
 
@@ -209,6 +209,10 @@ fn run_demo(args: &Args) -> Result<()> {
         rows: Vec::new(),
         filtered: Vec::new(),
         overlays: Vec::new(),
+        geometry: pipes
+            .iter()
+            .map(|p| CameraOverlays::new(p.rods()))
+            .collect(),
         frame_us: Vec::new(),
         processed: 0,
         dropped: 0,
@@ -291,6 +295,8 @@ struct DemoLoop<'a> {
     rows: Vec<Measurement>,
     filtered: Vec<Measurement>,
     overlays: Vec<RodOverlay>,
+    /// The overlays' constant parts, per camera.
+    geometry: Vec<CameraOverlays>,
     frame_us: Vec<f64>,
     processed: u64,
     dropped: u64,
@@ -312,12 +318,13 @@ impl DemoLoop<'_> {
         for (c, (buf, meta)) in frames.iter_mut().enumerate() {
             let view = FrameView::new(buf, meta.width, meta.height, meta.stride, meta.format)?;
             pipes[c].process(&view, frame_id, timestamp_s, &mut self.rows)?;
-            self.overlays.clear();
-            if self.console.wants_frame(c as u32) {
-                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
-                    self.overlays.push(overlays_for(tr, r));
-                }
+            // The overlays only when the console wants the frame (kept between frames: the
+            // next live frame reuses them).
+            let wanted = self.console.wants_frame(c as u32);
+            if wanted {
+                self.geometry[c].fill(pipes[c].last_results(), &mut self.overlays);
             }
+            let overlays: &[RodOverlay] = if wanted { &self.overlays } else { &[] };
             // The rendered buffer is handed over without a copy (a spare one comes back).
             self.console.publish_frame_buffer(
                 c as u32,
@@ -328,7 +335,7 @@ impl DemoLoop<'_> {
                 meta.format,
                 frame_id,
                 timestamp_s,
-                &self.overlays,
+                overlays,
             );
         }
         self.filtered.clear();

@@ -52,6 +52,11 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|c| CameraPipeline::new(c, Mode::Enhanced))
         .collect::<Result<_, _>>()?;
+    // The console's overlays: the rods' constant parts, once per camera.
+    let geometry: Vec<rodtrack_console::CameraOverlays> = pipes
+        .iter()
+        .map(|p| rodtrack_console::CameraOverlays::new(p.rods()))
+        .collect();
     let mut paper: Vec<Option<CameraPipeline>> = cals
         .iter()
         .map(|c| CameraPipeline::new(c, Mode::Paper).ok())
@@ -155,14 +160,7 @@ pub fn run(args: Args) -> Result<()> {
             // buffer given back is rendered into next time).
             if let Some(con) = console.as_ref() {
                 if con.wants_frame(c as u32) {
-                    overlays.clear();
-                    overlays.extend(
-                        pipes[c]
-                            .rods()
-                            .iter()
-                            .zip(pipes[c].last_results())
-                            .map(|(t, r)| rodtrack_console::overlays_for(t, r)),
-                    );
+                    geometry[c].fill(pipes[c].last_results(), &mut overlays);
                     con.publish_frame_buffer(
                         c as u32,
                         &mut bufs[c],

@@ -521,6 +521,12 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
         let t = Arc::new(ProcessTimes::default());
         times.push(t.clone());
         let mut overlays = Vec::new();
+        // The overlays' constant parts (the rods' lines), once: a live frame then only places
+        // the markers.
+        let geometry = console
+            .as_ref()
+            .map(|_| rodtrack_console::CameraOverlays::new(pipe.rods()))
+            .unwrap_or_default();
         let index = pipeline.add_camera(
             source,
             Box::new(move |meta, frame, rows| {
@@ -535,13 +541,7 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
                         // only when it asks for one (two atomic loads per frame otherwise).
                         if let (Ok(()), Some(c)) = (&r, console.as_ref()) {
                             if c.wants_frame(cam_index) {
-                                overlays.clear();
-                                overlays.extend(
-                                    pipe.rods()
-                                        .iter()
-                                        .zip(pipe.last_results())
-                                        .map(|(t, r)| rodtrack_console::overlays_for(t, r)),
-                                );
+                                geometry.fill(pipe.last_results(), &mut overlays);
                                 c.publish_frame(cam_index, &view, meta.frame_id, ts, &overlays);
                             }
                         }

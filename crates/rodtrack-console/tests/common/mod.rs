@@ -2,7 +2,7 @@
 //! Debian chromium, and the simulated demo (calibrated cameras and tracking) as a publisher.
 #![allow(dead_code, clippy::unwrap_used)]
 
-use rodtrack_console::{overlays_for, CameraSetup, ConsoleHandle, OwnedFrame, PipelineStats};
+use rodtrack_console::{CameraOverlays, CameraSetup, ConsoleHandle, OwnedFrame, PipelineStats};
 use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
 use rodtrack_core::{CameraId, CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Mode};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
@@ -379,6 +379,12 @@ impl Demo {
             .iter()
             .map(|c| CameraPipeline::new(c, Mode::Enhanced).unwrap())
             .collect();
+        // The overlays' constant parts, once per camera (as `rodtrack demo` and `rodtrack
+        // track --console` do).
+        let geometry: Vec<CameraOverlays> = pipes
+            .iter()
+            .map(|p| CameraOverlays::new(p.rods()))
+            .collect();
         let mut filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
         let mut bufs: Vec<Vec<u8>> = (0..ncam)
             .map(|c| vec![0u8; self.sim.frame_bytes(c).unwrap()])
@@ -415,10 +421,7 @@ impl Demo {
                 let t1 = Instant::now();
                 let copy = console.wants_frame(c as u32);
                 if copy {
-                    overlays.clear();
-                    for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
-                        overlays.push(overlays_for(tr, r));
-                    }
+                    geometry[c].fill(pipes[c].last_results(), &mut overlays);
                     if swap {
                         console.publish_frame_buffer(
                             c as u32,
