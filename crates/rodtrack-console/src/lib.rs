@@ -54,8 +54,7 @@ pub use calib::{CalibrationContext, CameraSetup, RodOutcome, Saved};
 pub use error::ConsoleError;
 pub use image::{preview, OwnedFrame, Preview};
 pub use overlay::{
-    overlays_for, BitOverlay, BitOverlays, CameraOverlays, LinePx, MarkerOverlay, RodGeometry,
-    RodOverlay,
+    overlays_for, BitOverlay, BitOverlays, CameraOverlays, MarkerOverlay, RodGeometry, RodOverlay,
 };
 
 use calib::CalibState;

@@ -1,16 +1,18 @@
 //! What the live view draws over a frame for one rod, computed from the tracker's line (knots)
 //! and the frame's result. Coordinates are full-resolution pixels.
 //!
-//! A live frame's overlays are computed on the tracking thread, so their constant part is
-//! computed once per rod ([`RodGeometry`], per camera [`CameraOverlays`]): the sampling line as
-//! drawn is shared by every frame's overlay ([`LinePx`], a reference-counted slice), and the
-//! marker's points come from a compact copy of the knots. A frame's overlay then holds no heap
-//! memory of its own ([`BitOverlays`] is a fixed array), and filling or copying one allocates
-//! nothing ([`RodOverlay`]'s `clone_from` keeps the line when it is the same one). The JSON the
-//! page gets is the same as with plain vectors.
+//! A live frame's overlays are made on the tracking thread, so they carry only what changes
+//! from frame to frame: a [`RodOverlay`] is the result's numbers (status, position, angle,
+//! quality, correlation, Gray step) and a shared reference to the rod's constant geometry
+//! ([`RodGeometry`], computed once per rod, per camera [`CameraOverlays`]: the sampling line as
+//! drawn, the marker's dimensions, a compact copy of the knots). The pixels of the marker (its
+//! ends, the barcode, the Gray bit points, the phase window) are computed when the overlay is
+//! serialised, on the console's thread. Making or copying a frame's overlays allocates nothing
+//! and leaves the geometry's reference counts alone once the vector holds the camera's rods.
+//! The JSON the page gets is the same as when everything was computed on the tracking side.
 
 use rodtrack_core::{gray, RodResult, RodTracker, Status};
-use serde::ser::SerializeSeq;
+use serde::ser::{SerializeSeq, SerializeStruct};
 use serde::{Serialize, Serializer};
 use std::ops::Deref;
 use std::sync::Arc;
@@ -22,44 +24,6 @@ pub const MAX_BITS: usize = 8;
 /// Half-angle of the phase window across the rod, seen from the facing line (the enhanced
 /// mode's samples span whole stripe periods within +/- 70 degrees).
 const PHASE_HALF_ANGLE_DEG: f64 = 70.0;
-
-/// A rod's sampling line as drawn (its knots, decimated), px: computed once per rod and shared
-/// by the overlays of every frame (cloning it is a reference count; serialised as a plain list
-/// of points).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct LinePx(Arc<[[f32; 2]]>);
-
-impl LinePx {
-    /// True when both are the same shared line (not only equal points).
-    pub fn same(&self, other: &LinePx) -> bool {
-        Arc::ptr_eq(&self.0, &other.0)
-    }
-    /// Takes `source`'s line, without touching the reference counts when it is the same one.
-    fn assign(&mut self, source: &LinePx) {
-        if !self.same(source) {
-            self.0 = source.0.clone();
-        }
-    }
-}
-
-impl Deref for LinePx {
-    type Target = [[f32; 2]];
-    fn deref(&self) -> &[[f32; 2]] {
-        &self.0
-    }
-}
-
-impl From<Vec<[f32; 2]>> for LinePx {
-    fn from(points: Vec<[f32; 2]>) -> LinePx {
-        LinePx(points.into())
-    }
-}
-
-impl Serialize for LinePx {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.0.serialize(s)
-    }
-}
 
 /// One Gray bit space: where it is sampled and the bit the decoded step says it holds.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
@@ -141,59 +105,144 @@ pub struct MarkerOverlay {
     pub radius_px: f32,
 }
 
-/// Everything the live view draws for one rod in one frame.
-#[derive(Debug, PartialEq, Serialize)]
+/// Everything the live view draws for one rod in one frame: the frame's numbers and the rod's
+/// shared [`RodGeometry`]; the line and the marker's pixels come from the geometry
+/// ([`RodOverlay::line_px`], [`RodOverlay::marker`]; computed when serialised, on the console's
+/// thread). Serialised as `{rod, status, reason, line_px, marker, position_mm, angle_rad,
+/// quality, ncc}`.
+#[derive(Debug, PartialEq)]
 pub struct RodOverlay {
+    geometry: Arc<RodGeometry>,
+    /// The result carries a position the marker can be drawn at (status `ok`, or `occluded`
+    /// after the barcode was placed).
+    located: bool,
     /// Rod id.
     pub rod: u32,
     /// The result's status (sets the colour).
     pub status: Status,
     /// Why the status is not `ok` (empty when it is).
     pub reason: &'static str,
-    /// The rod's sampling line (its knots, decimated), px; shared by every frame's overlay.
-    pub line_px: LinePx,
-    /// The marker, when the result places it on the line.
-    pub marker: Option<MarkerOverlay>,
-    /// Position, mm.
+    /// Position, mm (0 when not finite).
     pub position_mm: f64,
-    /// Angle, rad.
+    /// Angle, rad (0 when not finite).
     pub angle_rad: f64,
     /// Quality in `[0, 1]`.
     pub quality: f64,
     /// Barcode correlation peak.
     pub ncc: f64,
+    /// The decoded Gray step (the marker's bits show its code).
+    pub gray_step: u32,
+}
+
+impl RodOverlay {
+    /// The overlay of `result` over the rod of `geometry`.
+    pub fn new(geometry: Arc<RodGeometry>, result: &RodResult) -> RodOverlay {
+        let mut o = RodOverlay {
+            geometry,
+            located: false,
+            rod: 0,
+            status: Status::default(),
+            reason: "",
+            position_mm: 0.0,
+            angle_rad: 0.0,
+            quality: 0.0,
+            ncc: 0.0,
+            gray_step: 0,
+        };
+        o.set(result);
+        o
+    }
+
+    /// Takes the numbers of `result` (the geometry stays).
+    fn set(&mut self, result: &RodResult) {
+        self.located = result.position_mm.is_finite()
+            && (result.status == Status::Ok
+                || (result.status == Status::Occluded && result.position_mm != 0.0));
+        self.rod = self.geometry.rod;
+        self.status = result.status;
+        self.reason = result.reason;
+        self.position_mm = finite(result.position_mm);
+        self.angle_rad = finite(result.angle_rad);
+        self.quality = finite(result.quality);
+        self.ncc = finite(result.ncc);
+        self.gray_step = result.gray_step;
+    }
+
+    /// Points the overlay at `geometry`, touching the reference counts only when it is another
+    /// rod's.
+    fn set_geometry(&mut self, geometry: &Arc<RodGeometry>) {
+        if !Arc::ptr_eq(&self.geometry, geometry) {
+            self.geometry = geometry.clone();
+        }
+    }
+
+    /// The rod's geometry.
+    pub fn geometry(&self) -> &Arc<RodGeometry> {
+        &self.geometry
+    }
+
+    /// The rod's sampling line (its knots, decimated), px.
+    pub fn line_px(&self) -> &[[f32; 2]] {
+        &self.geometry.line_px
+    }
+
+    /// The marker, when the result places it on the line; its Gray bits are those of the
+    /// decoded step.
+    pub fn marker(&self) -> Option<MarkerOverlay> {
+        self.located
+            .then(|| self.geometry.marker(self.position_mm, self.gray_step))
+            .flatten()
+    }
 }
 
 impl Clone for RodOverlay {
     fn clone(&self) -> RodOverlay {
         RodOverlay {
-            line_px: self.line_px.clone(),
+            geometry: self.geometry.clone(),
             ..*self
         }
     }
-    /// Copies every field; the line only when it is another one (the console's copy of a
-    /// frame's overlays then allocates nothing and leaves the line's counts alone).
+    /// Copies the numbers; the geometry only when it is another rod's (the console's copy of
+    /// a frame's overlays then allocates nothing and leaves the reference counts alone).
     fn clone_from(&mut self, source: &RodOverlay) {
+        self.set_geometry(&source.geometry);
         let RodOverlay {
+            geometry: _,
+            located,
             rod,
             status,
             reason,
-            line_px,
-            marker,
             position_mm,
             angle_rad,
             quality,
             ncc,
-        } = source;
-        self.rod = *rod;
-        self.status = *status;
+            gray_step,
+        } = *source;
+        self.located = located;
+        self.rod = rod;
+        self.status = status;
         self.reason = reason;
-        self.line_px.assign(line_px);
-        self.marker = *marker;
-        self.position_mm = *position_mm;
-        self.angle_rad = *angle_rad;
-        self.quality = *quality;
-        self.ncc = *ncc;
+        self.position_mm = position_mm;
+        self.angle_rad = angle_rad;
+        self.quality = quality;
+        self.ncc = ncc;
+        self.gray_step = gray_step;
+    }
+}
+
+impl Serialize for RodOverlay {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut st = s.serialize_struct("RodOverlay", 9)?;
+        st.serialize_field("rod", &self.rod)?;
+        st.serialize_field("status", &self.status)?;
+        st.serialize_field("reason", self.reason)?;
+        st.serialize_field("line_px", self.line_px())?;
+        st.serialize_field("marker", &self.marker())?;
+        st.serialize_field("position_mm", &self.position_mm)?;
+        st.serialize_field("angle_rad", &self.angle_rad)?;
+        st.serialize_field("quality", &self.quality)?;
+        st.serialize_field("ncc", &self.ncc)?;
+        st.end()
     }
 }
 
@@ -201,27 +250,21 @@ fn pt(x: f64, y: f64) -> [f32; 2] {
     [x as f32, y as f32]
 }
 
-/// The constant part of one rod's overlay, from its tracker: the line as drawn, the marker's
-/// dimensions and a compact copy of the knots (x, y and radius of a knot side by side, so that
-/// placing the marker reads a few cache lines).
-#[derive(Debug, Clone)]
+/// The constant part of one rod's overlay, from its tracker (once per rod: the knots never
+/// change): the line as drawn, the marker's dimensions and a compact copy of the knots (x, y
+/// and radius of a knot side by side, so that placing the marker reads a few cache lines).
+#[derive(Debug, Clone, PartialEq)]
 pub struct RodGeometry {
     rod: u32,
-    line_px: LinePx,
+    line_px: Vec<[f32; 2]>,
     s0_mm: f64,
     step_mm: f64,
     /// Per knot: x, y, radius, px.
     knots: Vec<[f64; 3]>,
     /// Centres of the Gray bit spaces, mm from the marker's start.
-    bit_centres_mm: BitCentres,
+    bit_centres_mm: Vec<f64>,
     length_mm: f64,
     barcode_mm: [f64; 2],
-}
-
-#[derive(Debug, Clone, Copy, Default)]
-struct BitCentres {
-    len: usize,
-    mm: [f64; MAX_BITS],
 }
 
 /// A point of the line: position, unit tangent and radius, as [`rodtrack_core::Knots::at`]
@@ -235,7 +278,7 @@ struct At {
 }
 
 impl RodGeometry {
-    /// Computes the rod's constant overlay parts (once per rod: the knots never change).
+    /// The rod's constant overlay parts.
     pub fn new(tracker: &RodTracker) -> RodGeometry {
         let knots = tracker.knots();
         let n = knots.len();
@@ -248,14 +291,9 @@ impl RodGeometry {
             line_px.push(pt(knots.x_px[n - 1], knots.y_px[n - 1]));
         }
         let m = tracker.marker();
-        let mut bit_centres_mm = BitCentres::default();
-        for k in 0..m.bits().min(MAX_BITS as u32) {
-            bit_centres_mm.mm[k as usize] = m.bit_space_centre_mm(k);
-            bit_centres_mm.len += 1;
-        }
         RodGeometry {
             rod: tracker.rod(),
-            line_px: line_px.into(),
+            line_px,
             s0_mm: knots.s0_mm,
             step_mm: knots.step_mm,
             knots: (0..n)
@@ -267,7 +305,9 @@ impl RodGeometry {
                     ]
                 })
                 .collect(),
-            bit_centres_mm,
+            bit_centres_mm: (0..m.bits().min(MAX_BITS as u32))
+                .map(|k| m.bit_space_centre_mm(k))
+                .collect(),
             length_mm: m.length_mm(),
             barcode_mm: [
                 m.barcode_start_mm(),
@@ -276,9 +316,28 @@ impl RodGeometry {
         }
     }
 
+    /// A rod drawn as the line `line_px` only (no knots: no marker is ever placed on it).
+    pub fn line_only(rod: u32, line_px: Vec<[f32; 2]>) -> RodGeometry {
+        RodGeometry {
+            rod,
+            line_px,
+            s0_mm: 0.0,
+            step_mm: 1.0,
+            knots: Vec::new(),
+            bit_centres_mm: Vec::new(),
+            length_mm: 0.0,
+            barcode_mm: [0.0; 2],
+        }
+    }
+
     /// The rod id.
     pub fn rod(&self) -> u32 {
         self.rod
+    }
+
+    /// The rod's sampling line as drawn, px.
+    pub fn line_px(&self) -> &[[f32; 2]] {
+        &self.line_px
     }
 
     /// The line at axis coordinate `s_mm`, clamped to the knots (at least 2): the same
@@ -300,22 +359,19 @@ impl RodGeometry {
         }
     }
 
-    fn marker(&self, result: &RodResult) -> Option<MarkerOverlay> {
-        let placed = result.position_mm.is_finite()
-            && self.knots.len() >= 2
-            && (result.status == Status::Ok
-                || (result.status == Status::Occluded && result.position_mm != 0.0));
-        if !placed {
+    /// The marker's pixels with its start at `position_mm` on the axis and the Gray code of
+    /// `gray_step` (None without knots).
+    pub fn marker(&self, position_mm: f64, gray_step: u32) -> Option<MarkerOverlay> {
+        if self.knots.len() < 2 {
             return None;
         }
-        let pos = result.position_mm;
         let at = |u: f64| {
-            let p = self.at(pos + u);
+            let p = self.at(position_mm + u);
             pt(p.x, p.y)
         };
-        let code = gray(result.gray_step);
-        let centres = &self.bit_centres_mm.mm[..self.bit_centres_mm.len];
-        let bits = centres
+        let code = gray(gray_step);
+        let bits = self
+            .bit_centres_mm
             .iter()
             .enumerate()
             .map(|(k, &c)| BitOverlay {
@@ -323,7 +379,7 @@ impl RodGeometry {
                 black: (code >> k) & 1 == 1,
             })
             .collect();
-        let lp = self.at(pos + centres.first().copied().unwrap_or(0.0));
+        let lp = self.at(position_mm + self.bit_centres_mm.first().copied().unwrap_or(0.0));
         let half = lp.radius_px * PHASE_HALF_ANGLE_DEG.to_radians().sin();
         // The offsets across the line, as `LinePoint::offset(0, -half)` and `(0, half)`.
         let (ax, ay) = (lp.x + lp.ty * half, lp.y - lp.tx * half);
@@ -336,69 +392,44 @@ impl RodGeometry {
             radius_px: lp.radius_px as f32,
         })
     }
-
-    /// The rod's overlay for the result of the frame shown. The marker is drawn when the result
-    /// carries a position (status `ok`, or `occluded` after the barcode was placed); its Gray
-    /// bits are those of the decoded step.
-    pub fn overlay(&self, result: &RodResult) -> RodOverlay {
-        RodOverlay {
-            rod: self.rod,
-            status: result.status,
-            reason: result.reason,
-            line_px: self.line_px.clone(),
-            marker: self.marker(result),
-            position_mm: finite(result.position_mm),
-            angle_rad: finite(result.angle_rad),
-            quality: finite(result.quality),
-            ncc: finite(result.ncc),
-        }
-    }
-
-    /// Like [`RodGeometry::overlay`], into an existing overlay (its line is kept when it is
-    /// this rod's already: no allocation, no reference count).
-    pub fn write(&self, result: &RodResult, out: &mut RodOverlay) {
-        out.rod = self.rod;
-        out.status = result.status;
-        out.reason = result.reason;
-        out.line_px.assign(&self.line_px);
-        out.marker = self.marker(result);
-        out.position_mm = finite(result.position_mm);
-        out.angle_rad = finite(result.angle_rad);
-        out.quality = finite(result.quality);
-        out.ncc = finite(result.ncc);
-    }
 }
 
 /// The constant overlay parts of one camera's rods ([`RodGeometry`], the trackers' order):
 /// build it once with the camera's pipeline, then [`CameraOverlays::fill`] for every live frame.
 #[derive(Debug, Clone, Default)]
 pub struct CameraOverlays {
-    rods: Vec<RodGeometry>,
+    rods: Vec<Arc<RodGeometry>>,
 }
 
 impl CameraOverlays {
     /// From the camera's rod trackers (`CameraPipeline::rods`).
     pub fn new(trackers: &[RodTracker]) -> CameraOverlays {
         CameraOverlays {
-            rods: trackers.iter().map(RodGeometry::new).collect(),
+            rods: trackers
+                .iter()
+                .map(|t| Arc::new(RodGeometry::new(t)))
+                .collect(),
         }
     }
 
     /// The rods' geometry.
-    pub fn rods(&self) -> &[RodGeometry] {
+    pub fn rods(&self) -> &[Arc<RodGeometry>] {
         &self.rods
     }
 
     /// Writes the overlays of one frame's results (`CameraPipeline::last_results`, one per rod
     /// in the trackers' order) into `out`, reusing its entries: once `out` holds this camera's
-    /// overlays, a frame allocates nothing.
+    /// overlays, a frame copies the results' numbers and nothing else.
     pub fn fill(&self, results: &[RodResult], out: &mut Vec<RodOverlay>) {
         let n = self.rods.len().min(results.len());
         out.truncate(n);
         for (i, (g, r)) in self.rods.iter().zip(results).enumerate() {
             match out.get_mut(i) {
-                Some(o) => g.write(r, o),
-                None => out.push(g.overlay(r)),
+                Some(o) => {
+                    o.set_geometry(g);
+                    o.set(r);
+                }
+                None => out.push(RodOverlay::new(g.clone(), r)),
             }
         }
     }
@@ -407,7 +438,7 @@ impl CameraOverlays {
 /// The overlay of one rod from its tracker and the result of the frame shown (computes the
 /// rod's [`RodGeometry`] each time: for every frame, keep a [`CameraOverlays`]).
 pub fn overlays_for(tracker: &RodTracker, result: &RodResult) -> RodOverlay {
-    RodGeometry::new(tracker).overlay(result)
+    RodOverlay::new(Arc::new(RodGeometry::new(tracker)), result)
 }
 
 fn finite(v: f64) -> f64 {

@@ -8,10 +8,10 @@ mod common;
 use common::{chromium, get_json, http, post_json, Browser, Demo, TempDir};
 use rodtrack_console::{
     calib::default_inputs, calib::new_rod, CalibrationContext, CameraSetup, Console, OwnedFrame,
-    PipelineStats, RodOverlay,
+    PipelineStats, RodGeometry, RodOverlay,
 };
 use rodtrack_core::calib::CalibrationFile;
-use rodtrack_core::{CameraId, FrameView, Measurement, PixelFormat, Status};
+use rodtrack_core::{CameraId, FrameView, Measurement, PixelFormat, RodResult, Status};
 use serde_json::json;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -58,24 +58,28 @@ fn page_shows_frames_and_plots_and_clicks_become_calibration_points() {
     let addr = console.addr();
     let stop = AtomicBool::new(false);
     std::thread::scope(|s| {
-        // The tracking side: 100 frames/s with one overlay, rows for 3 rods.
+        // The tracking side: 100 frames/s with one overlay (a line, no marker), rows for 3 rods.
         s.spawn(|| {
+            let line = Arc::new(RodGeometry::line_only(
+                0,
+                vec![[100.0, 20.0], [120.0, 460.0]],
+            ));
             let mut k = 1u64;
             while !stop.load(Ordering::Relaxed) {
                 let d = synthetic_frame(k);
                 let v = FrameView::packed(&d, W, H, PixelFormat::Mono8).unwrap();
                 let t = k as f64 / 100.0;
-                let overlay = RodOverlay {
-                    rod: 0,
-                    status: Status::Ok,
-                    reason: "",
-                    line_px: vec![[100.0, 20.0], [120.0, 460.0]].into(),
-                    marker: None,
-                    position_mm: 1.0,
-                    angle_rad: 0.5,
-                    quality: 1.0,
-                    ncc: 0.9,
-                };
+                let overlay = RodOverlay::new(
+                    line.clone(),
+                    &RodResult {
+                        status: Status::Ok,
+                        position_mm: 1.0,
+                        angle_rad: 0.5,
+                        quality: 1.0,
+                        ncc: 0.9,
+                        ..RodResult::default()
+                    },
+                );
                 console.publish_frame(0, &v, k, t, &[overlay]);
                 let rows: Vec<Measurement> = (0..3)
                     .map(|rod| {

@@ -113,15 +113,15 @@ fn cached_overlays_equal_the_ones_computed_from_the_knots() {
                     serde_json::to_value(rodtrack_console::overlays_for(tr, r)).unwrap(),
                     want
                 );
-                markers += usize::from(o.marker.is_some());
+                markers += usize::from(o.marker().is_some());
             }
-            // The console's copy: equal, sharing the line.
+            // The console's copy: equal, sharing the geometry.
             let mut copy = overlays[c].clone();
             overlays[c].clone_into(&mut copy);
             assert_eq!(copy, overlays[c]);
             for (a, b) in copy.iter().zip(&overlays[c]) {
-                assert!(a.line_px.same(&b.line_px));
-                assert!(a.line_px.len() >= 2);
+                assert!(std::sync::Arc::ptr_eq(a.geometry(), b.geometry()));
+                assert!(a.line_px().len() >= 2);
             }
         }
     }
