@@ -9,8 +9,9 @@
 //! The share of one run comes from the medians of each kind of call, which a loaded machine
 //! preempts less than it does wall-clock totals: `(copies/s x copy + (frames/s - copies/s) x
 //! skip + sets/s x rows) / (sets/s x tracking per set)`, at 200 sets/s and the console's live
-//! rate per camera ([`LIVE_FPS`] for swapped frames, [`LIVE_COPY_FPS`] for copied ones). The
-//! overlays' computation counts as part of a live frame's call.
+//! rate per camera ([`LIVE_FPS`] for swapped frames, [`LIVE_COPY_FPS`] for copied ones). Making
+//! the overlays on the tracking side (`CameraOverlays::fill`) counts as part of a live frame's
+//! call; the marker's pixels are computed when the console serialises the frame, on its thread.
 //!
 //! ```sh
 //! cargo bench -p rodtrack-console --bench overhead                 # 5 runs of 400 frame sets

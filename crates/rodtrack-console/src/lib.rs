@@ -25,17 +25,29 @@
 //! console's own thread (a one-worker tokio runtime serving axum) downscales, encodes and sends
 //! at its own pace. The time spent inside the publish calls is measured
 //! ([`ConsoleHandle::overhead`]); their share of the tracking time is the `overhead` bench
-//! (`cargo bench -p rodtrack-console --bench overhead -- --runs 9`): about 0.8 % with swapped
-//! live frames and 1.9-2.0 % with copied ones, most of it the copy itself (90-110 us, bound by
-//! memory bandwidth: it reads half the rows of a 1440x1080 Bayer frame, the fewest a 360x270
-//! colour preview needs, into a buffer last written half a second earlier).
+//! (`cargo bench -p rodtrack-console --bench overhead -- --runs 9`): about 0.6 % with swapped
+//! live frames (a live frame's call about 3 us) and 1.7-1.9 % with copied ones, almost all of
+//! it the copy itself (70-100 us, bound by memory bandwidth: it reads half the rows of a
+//! 1440x1080 Bayer frame, the fewest a 360x270 colour preview needs, into a buffer last
+//! written half a second earlier).
+//!
+//! A live frame's overlays cost the tracking side a copy of the rods' results: the constant
+//! part of each rod's overlay (its sampling line, the marker's dimensions, a compact copy of
+//! the knots) is computed once per camera ([`CameraOverlays`]) and shared by reference; the
+//! marker's pixels (barcode, Gray bit points, phase window) are computed when the console
+//! serialises the frame, on its own thread (see [`overlay`]). Computing everything on the
+//! tracking thread took about 14 us per live frame (mostly cache misses on the knots), copying
+//! it into the console's slot with its vectors a few more.
 //!
 //! # API
 //! - [`Console::start`]`(addr, Option<CalibrationContext>) -> Result<ConsoleHandle>`
 //!   (port 0 picks a free port: [`ConsoleHandle::addr`]).
 //! - [`ConsoleHandle::wants_frame`]`(camera)`, [`ConsoleHandle::publish_frame`]`(camera,
-//!   &FrameView, frame_id, timestamp_s, &[RodOverlay])`, [`overlays_for`]`(&RodTracker,
-//!   &RodResult)`.
+//!   &FrameView, frame_id, timestamp_s, &[RodOverlay])`; the overlays from
+//!   [`CameraOverlays::new`]`(pipeline.rods())` (once) and
+//!   [`CameraOverlays::fill`]`(pipeline.last_results(), &mut Vec<RodOverlay>)` (per live
+//!   frame, no allocation once the vector holds the camera's rods); [`overlays_for`]`(&RodTracker,
+//!   &RodResult)` for a one-off overlay.
 //! - [`ConsoleHandle::publish_frame_buffer`]: the same for an owned buffer, swapped instead of
 //!   copied (zero copy, full resolution; `rodtrack demo` and `rodtrack console --demo` use it,
 //!   `rodtrack track` uses the decimated copy: its frames are the runtime's).

@@ -302,6 +302,22 @@ fn demo_in_the_browser_screenshot_and_calibration_equal_to_the_cli() {
             "{shown}"
         );
         assert!(v[6] > 0.5, "decimated frame mostly dark: {shown}");
+        // The overlays the page draws: every rod's line, and markers with their Gray bits.
+        let drawn = b.eval(
+            "(() => { const o = rodtrack.cams.get(0).header.overlays; \
+             return [o.length, Math.min(...o.map((r) => r.line_px.length)), \
+             o.filter((r) => r.marker && r.marker.bits.length >= 3).length]; })()",
+        );
+        let d: Vec<f64> = drawn
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert!(
+            d[0] >= 1.0 && d[1] >= 2.0 && d[2] >= 1.0,
+            "overlays not drawn: {drawn}"
+        );
         let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../target/console-demo-copy.png");
         std::fs::write(&target, b.screenshot()).unwrap();
