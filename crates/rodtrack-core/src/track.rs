@@ -92,6 +92,9 @@ const GRAY_SAMPLES: [(f64, f64); 5] = [
     (0.0, -0.15),
     (0.0, 0.15),
 ];
+/// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
+/// bits' threshold, mm (its middle is read, half its length along the rod).
+const QUIET_REFERENCE_MIN_MM: f64 = 2.0;
 /// How far the marker may move from where the print's shading was measured before it is
 /// measured again, mm.
 const SHADING_REUSE_MM: f64 = 5.0;
@@ -282,10 +285,22 @@ impl ScaleFit {
 /// the axis coordinate in mm), and the mean radius ratio, accumulated over frames. The rod's
 /// axis does not move in the image, so every frame's silhouette adds to the same line: its
 /// noise averages out while the marker travels, and no single frame's noise reaches the phase.
+///
+/// A silhouette is only as good as the background beside the rod: something bright next to
+/// one side (a figure, the table's wall, a reflection) moves that edge alone, and a gate on
+/// the centre lets such samples in and drag the line away little by little. Such a sample
+/// shows as a half width off the learnt radius (by half the edge's move), whereas a place
+/// where the line itself runs elsewhere (not learnt yet) moves both edges alike and keeps the
+/// half width. So the half width must agree with the learnt radius within a few times its own
+/// scatter (learnt from the accepted samples).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CentreFit {
     line: LineFit,
     ratio: f64,
+    /// Sum of the accepted samples' squared half-width deviations, px^2, and their count
+    /// (forgotten as the line's samples are).
+    width_dev2: f64,
+    width_n: f64,
 }
 
 impl CentreFit {
@@ -304,18 +319,39 @@ impl CentreFit {
         }
     }
 
-    /// Adds one silhouette sample; refuses one far from the current fit (hands, figures).
-    pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64) -> bool {
+    /// Samples before the half width's scatter gates new ones.
+    const WIDTH_GATE_AFTER: f64 = 20.0;
+    /// The half-width gate, in its scatters, and its floor, px.
+    const WIDTH_GATE_SIGMAS: f64 = 4.0;
+    const WIDTH_GATE_MIN_PX: f64 = 0.15;
+
+    /// Adds one silhouette sample (centre offset, half width over the calibrated radius
+    /// `radius_px`); refuses one far from the current fit (hands, figures, a bright
+    /// background on one side).
+    pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64, radius_px: f64) -> bool {
+        let mut dev = None;
         if self.line.n >= 5.0 {
             let (e, r) = self.at(s_mm);
             if (offset_px - e).abs() > 0.75 || (ratio - r).abs() > 0.1 {
                 return false;
             }
+            let d = (ratio - r) * radius_px;
+            if self.width_n >= Self::WIDTH_GATE_AFTER {
+                let sigma = (self.width_dev2 / self.width_n).sqrt();
+                if d.abs() > (Self::WIDTH_GATE_SIGMAS * sigma).max(Self::WIDTH_GATE_MIN_PX) {
+                    return false;
+                }
+            }
+            dev = Some(d);
         } else if offset_px.abs() > 3.0 || (ratio - 1.0).abs() > 0.3 {
             return false;
         }
         let k = self.line.add(s_mm, offset_px);
         self.ratio = self.ratio * k + ratio;
+        if let Some(d) = dev {
+            self.width_dev2 = self.width_dev2 * k + d * d;
+            self.width_n = self.width_n * k + 1.0;
+        }
         true
     }
 
@@ -533,6 +569,15 @@ impl RodTracker {
         }
     }
 
+    /// What the enhanced mode has learnt (diagnostics): the centre line's offset across the
+    /// calibrated line at `s_mm` (px) and the radius ratio, and the phase's radius correction
+    /// `eps` in use.
+    pub fn learnt(&self, s_mm: f64) -> (f64, f64, f64) {
+        let st = &self.enhanced;
+        let (offset, ratio) = st.centre.at(s_mm);
+        (offset, ratio, (st.eps_best as f64 - 8.0) * 0.01)
+    }
+
     /// The rod id.
     pub fn rod(&self) -> u32 {
         self.calib.rod
@@ -684,10 +729,18 @@ impl RodTracker {
         }
         let inter = Intermediate { loc, edges };
         st.inter = Some(inter);
-        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter);
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
-        let (phi, amp_ratio) = st.phase(m, calib.reference_position_mm, frame, &inter);
-        st.judge(m, calib, &inter, alpha, min_high_margin, phi, amp_ratio)
+        let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
+        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter, ph.mean);
+        st.judge(
+            m,
+            calib,
+            &inter,
+            alpha,
+            min_high_margin,
+            ph.phi,
+            ph.amp_ratio,
+        )
     }
 
     /// Touches the frame's cache lines where this rod's marker is expected (enhanced mode, when
@@ -743,7 +796,7 @@ impl RodTracker {
             }
             Stage::Centre => st.learn_centre(frame, inter.edges.position_mm),
             Stage::Gray => {
-                std::hint::black_box(st.gray_code(m, frame, &inter));
+                std::hint::black_box(st.gray_code(m, frame, &inter, 0.5));
             }
             Stage::Shading => st.shading(m, calib.reference_position_mm, frame, &inter, true),
             Stage::Phase => {
@@ -1053,7 +1106,8 @@ impl EnhancedState {
         for &u in &self.ring_u {
             let lp = self.knots.at(position_mm + u);
             if let Some((c, hw)) = ring_silhouette(frame, &lp) {
-                self.centre.add(position_mm + u, c, hw / lp.radius_px);
+                self.centre
+                    .add(position_mm + u, c, hw / lp.radius_px, lp.radius_px);
             }
         }
     }
@@ -1072,29 +1126,77 @@ impl EnhancedState {
 
     /// Step 4: the Gray bits at the centre of each bit space: (decoded step, smallest margin
     /// of the high bits, in half contrasts).
-    fn gray_code(&self, m: &Marker, frame: &FrameView, inter: &Intermediate) -> (u32, f64) {
+    ///
+    /// Each bit is read on the barcode's scale (its black 0, its white 1, with the print's
+    /// shading across the rod) against a threshold that follows the light along the Gray
+    /// code: the print may be lit unlike the barcode (a lamp's glare, a light gradient) by an
+    /// offset that bit space 0's stripes measure (their mean is 0.5 when lit as the barcode:
+    /// half black, half white) and the white quiet zone after the last bit space measures
+    /// (1 when lit as the barcode); between them it is interpolated. `stripes_mean` is bit
+    /// space 0's mean from the phase step.
+    fn gray_code(
+        &self,
+        m: &Marker,
+        frame: &FrameView,
+        inter: &Intermediate,
+        stripes_mean: f64,
+    ) -> (u32, f64) {
         let position = inter.edges.position_mm;
-        let (white, black) = (inter.loc.white, inter.loc.black);
-        let contrast = white - black;
         let bits = m.bits() as usize;
+        // The shading at the facing line (the middle of the phase samples).
+        let mid = self.white.len() / 2;
+        let centre = |v: &[f64]| {
+            if v.len() % 2 == 0 {
+                0.5 * (v[mid - 1] + v[mid])
+            } else {
+                v[mid]
+            }
+        };
+        let (white, black) = if self.white.is_empty() {
+            (inter.loc.white, inter.loc.black)
+        } else {
+            (centre(&self.white), centre(&self.black))
+        };
+        let span = (white - black).max(0.2 * (inter.loc.white - inter.loc.black));
+        let read = |u: f64, along_mm: f64| -> Option<f64> {
+            let lp = self.knots.at(position + u);
+            if !frame.contains(lp.x as f32, lp.y as f32, 2.0 + 0.5 * lp.radius_px as f32) {
+                return None;
+            }
+            let mut acc = 0.0f32;
+            for (da, dc) in GRAY_SAMPLES {
+                let (x, y) = lp.offset(da * along_mm * lp.px_per_mm, dc * lp.radius_px);
+                acc += frame.luma_bilinear(x as f32, y as f32);
+            }
+            Some((acc as f64 / GRAY_SAMPLES.len() as f64 - black) / span)
+        };
+        // The light's offset on the barcode's scale: at bit space 0 and at the quiet zone.
+        let u0 = m.bit_space_centre_mm(0);
+        let off0 = (stripes_mean - 0.5).clamp(-1.0, 1.0);
+        let gray_end = m.gray_start_mm() + bits as f64 * m.bit_space_mm();
+        let quiet = m.length_mm() - gray_end;
+        let uq = gray_end + 0.5 * quiet;
+        let offq = if quiet >= QUIET_REFERENCE_MIN_MM {
+            read(uq, 0.25 * quiet).map(|w| (w - 1.0).clamp(-1.0, 1.0))
+        } else {
+            None
+        };
         let mut samples = [0.0f32; 8];
-        let threshold = (0.5 * (white + black)) as f32;
         let mut min_high_margin = f64::MAX;
         for (kb, s) in samples.iter_mut().enumerate().take(bits) {
             let c = m.bit_space_centre_mm(kb as u32);
-            let lp = self.knots.at(position + c);
-            let mut acc = 0.0f32;
-            for (da, dc) in GRAY_SAMPLES {
-                let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
-                acc += frame.luma_bilinear(x as f32, y as f32);
-            }
-            *s = acc / GRAY_SAMPLES.len() as f32;
+            let off = match offq {
+                Some(oq) => off0 + (oq - off0) * (c - u0) / (uq - u0),
+                None => off0,
+            };
+            // Outside the frame: read as the threshold, an ambiguous bit.
+            let v = read(c, m.bit_space_mm()).map_or(0.5, |v| v - off);
+            *s = v as f32;
             if kb >= 2 {
-                let margin = ((*s - threshold).abs() as f64) / (0.5 * contrast);
-                min_high_margin = min_high_margin.min(margin);
+                min_high_margin = min_high_margin.min((v - 0.5).abs() / 0.5);
             }
         }
-        let (_, alpha) = decode_bits(&samples[..bits], threshold);
+        let (_, alpha) = decode_bits(&samples[..bits], 0.5);
         (alpha, min_high_margin)
     }
 
@@ -1159,15 +1261,14 @@ impl EnhancedState {
         self.shading_age = 0;
     }
 
-    /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection:
-    /// (phase in rad, amplitude over a full-contrast square wave's).
+    /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection.
     fn phase(
         &mut self,
         m: &Marker,
         reference_position_mm: f64,
         frame: &FrameView,
         inter: &Intermediate,
-    ) -> (f64, f64) {
+    ) -> PhaseFit {
         let st = self;
         let position = inter.edges.position_mm;
         let ca = st.centre_at(m, reference_position_mm, position);
@@ -1216,13 +1317,13 @@ impl EnhancedState {
                 std::array::from_fn(|i| gi[i][0] * r[0] + gi[i][1] * r[1] + gi[i][2] * r[2]);
             // Energy explained by the fundamental beyond the constant.
             let energy = x[0] * r[0] + x[1] * r[1] + x[2] * r[2] - r[0] * r[0] / sw.max(1e-12);
-            (x[1], x[2], energy)
+            (x[0], x[1], x[2], energy)
         };
         // Learn: score the whole grid (while learning, then every 8th frame), accumulate the
         // normalised energies (slowly forgetting), keep the best eps.
         if st.frames_seen < EPS_LEARN_FRAMES || st.frames_seen % EPS_RESCORE_EVERY == 0 {
             for ((z, table), gi) in st.eps_z.iter_mut().zip(&st.eps_tables).zip(&st.eps_ginv) {
-                let (_, _, e) = fit(table, gi, &st.phase_v);
+                let (_, _, _, e) = fit(table, gi, &st.phase_v);
                 *z = (e.max(0.0).sqrt(), 0.0);
             }
             let e_max = st
@@ -1244,7 +1345,7 @@ impl EnhancedState {
                     .unwrap_or(n_eps / 2);
             }
         }
-        let (a, b, _) = fit(
+        let (mean, a, b, _) = fit(
             &st.eps_tables[st.eps_best],
             &st.eps_ginv[st.eps_best],
             &st.phase_v,
@@ -1252,9 +1353,12 @@ impl EnhancedState {
         let phi = b.atan2(a);
         // Per row (phase_v sums the rows).
         let amplitude = (a * a + b * b).sqrt() / rows.len() as f64;
-        // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
-        let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
-        (phi, amp_ratio)
+        PhaseFit {
+            phi,
+            // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
+            amp_ratio: amplitude / (2.0 / std::f64::consts::PI),
+            mean: mean / rows.len() as f64,
+        }
     }
 
     /// Step 6: fuses the phase with the Gray code, checks their consistency, and gives the
@@ -1329,6 +1433,18 @@ impl EnhancedState {
             edge_std_mm: edge_std,
         }
     }
+}
+
+/// The phase step's result.
+#[derive(Debug, Clone, Copy)]
+struct PhaseFit {
+    /// Phase of the stripes' fundamental, rad.
+    phi: f64,
+    /// Its amplitude over a full-contrast square wave's.
+    amp_ratio: f64,
+    /// The stripes' mean level over bit space 0, on the barcode's scale (its black 0, its
+    /// white 1 at each point across the rod): 0.5 when bit space 0 is lit as the barcode is.
+    mean: f64,
 }
 
 /// The learnt centre line, seen from one frame's marker position.
