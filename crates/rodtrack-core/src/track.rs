@@ -228,6 +228,22 @@ impl LineFit {
         }
     }
 
+    /// [`LineFit::coeffs`] of the samples and `weight` more samples `(s_mm, v)`; `None`
+    /// before the first sample.
+    fn coeffs_with(&self, s_mm: f64, v: f64, weight: f64) -> Option<(f64, f64, f64)> {
+        if self.n < 1.0 {
+            return None;
+        }
+        LineFit {
+            n: self.n + weight,
+            s: self.s + weight * s_mm,
+            ss: self.ss + weight * s_mm * s_mm,
+            v: self.v + weight * v,
+            sv: self.sv + weight * s_mm * v,
+        }
+        .coeffs()
+    }
+
     /// Adds a sample; returns the factor old sums were scaled by (for companions).
     fn add(&mut self, s_mm: f64, v: f64) -> f64 {
         let mut k = 1.0;
@@ -267,9 +283,16 @@ impl ScaleFit {
         true
     }
 
-    /// Calibrated-line coordinate `s` to true mm, keeping `s_ref` fixed.
+    /// Calibration measured the scale at the reference (the barcode's edges there set the mm
+    /// scale): the scale error there is 0, worth this many frames' measurements. Without it a
+    /// rod that never moves would have its local scale error applied over the whole way from
+    /// the reference (twice the correction where the scale changes steadily along the rod).
+    const REFERENCE_WEIGHT: f64 = 50.0;
+
+    /// Calibrated-line coordinate `s` to true mm, keeping `s_ref` (the barcode's middle at
+    /// the reference pose, where calibration measured the scale) fixed.
     pub fn to_true(&self, s_mm: f64, s_ref_mm: f64) -> f64 {
-        match self.coeffs() {
+        match self.line.coeffs_with(s_ref_mm, 0.0, Self::REFERENCE_WEIGHT) {
             None => s_mm,
             Some((b0, b1, ms)) => {
                 // integral of b from s_ref to s

@@ -109,3 +109,27 @@ fn a_line_that_runs_elsewhere_than_extrapolated_is_still_learnt() {
     let e = fit.at(200.0).0 - truth(200.0);
     assert!(e.abs() < 0.02, "at 200 mm: {e:+.4} px");
 }
+
+/// The mm scale: calibration measured it at the reference (scale error 0 there). A rod that
+/// stays 120 mm away, where its barcode shows a scale error of 0.5 %, with the error growing
+/// steadily along the rod (a camera pitched along it), is 0.3 mm off on the calibrated line
+/// (the integral of the error from the reference): that, not twice it, is what comes off.
+#[test]
+fn a_still_rod_far_from_the_reference_gets_the_integral_of_the_scale_error() {
+    use rodtrack_core::track::ScaleFit;
+    let (s_ref, s, b) = (40.0, 160.0, 0.005);
+    let mut fit = ScaleFit::default();
+    assert_eq!(fit.to_true(s, s_ref), s, "nothing learnt: unchanged");
+    let expect = s - 0.5 * b * (s - s_ref);
+    for k in 0..200 {
+        assert!(fit.add(s, b));
+        let got = fit.to_true(s, s_ref);
+        assert!(
+            (got - expect).abs() < 0.01,
+            "after {} frames: {got:.4} mm, expected {expect:.4} mm",
+            k + 1
+        );
+    }
+    // The reference itself stays where calibration put it.
+    assert!((fit.to_true(s_ref, s_ref) - s_ref).abs() < 1e-9);
+}
