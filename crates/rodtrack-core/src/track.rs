@@ -92,6 +92,8 @@ const GRAY_SAMPLES: [(f64, f64); 5] = [
     (0.0, -0.15),
     (0.0, 0.15),
 ];
+/// Most rings whose silhouettes one frame adds to the learnt centre line.
+const MAX_RINGS: usize = 32;
 /// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
 /// bits' threshold, mm (its middle is read, half its length along the rod).
 const QUIET_REFERENCE_MIN_MM: f64 = 2.0;
@@ -324,6 +326,9 @@ pub struct CentreFit {
     /// (forgotten as the line's samples are).
     width_dev2: f64,
     width_n: f64,
+    /// The span of the axis covered by accepted samples, mm.
+    s_lo: f64,
+    s_hi: f64,
 }
 
 impl CentreFit {
@@ -352,35 +357,87 @@ impl CentreFit {
     /// `radius_px`); refuses one far from the current fit (hands, figures, a bright
     /// background on one side).
     pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64, radius_px: f64) -> bool {
-        let mut dev = None;
-        if self.line.n >= 5.0 {
-            let (e, r) = self.at(s_mm);
-            if (offset_px - e).abs() > 0.75 || (ratio - r).abs() > 0.1 {
-                return false;
+        self.add_frame(&[Silhouette {
+            s_mm,
+            offset_px,
+            ratio,
+            radius_px,
+        }]) > 0
+    }
+
+    /// Adds one frame's silhouettes (one per ring) as one sample: their mean place, offset
+    /// and ratio over those the gates let in. The line's slope then comes from where the
+    /// marker was over frames, never from the spread of the rings along one marker (each
+    /// ring's silhouette has a small bias of its own, from its neighbours in the print, that
+    /// a slope over the marker's 30 mm would carry far along the travel). Returns how many
+    /// were let in.
+    pub fn add_frame(&mut self, rings: &[Silhouette]) -> usize {
+        let (mut n, mut sum_s, mut sum_c, mut sum_r) = (0usize, 0.0, 0.0, 0.0);
+        let (mut dev2, mut n_dev) = (0.0, 0.0);
+        for r in rings {
+            let Ok(dev) = self.gate(r) else {
+                continue;
+            };
+            if let Some(d) = dev {
+                dev2 += d * d;
+                n_dev += 1.0;
             }
-            let d = (ratio - r) * radius_px;
-            if self.width_n >= Self::WIDTH_GATE_AFTER {
-                let sigma = (self.width_dev2 / self.width_n).sqrt();
-                if d.abs() > (Self::WIDTH_GATE_SIGMAS * sigma).max(Self::WIDTH_GATE_MIN_PX) {
-                    return false;
-                }
+            if self.line.n < 1.0 && n == 0 {
+                (self.s_lo, self.s_hi) = (r.s_mm, r.s_mm);
+            } else {
+                self.s_lo = self.s_lo.min(r.s_mm);
+                self.s_hi = self.s_hi.max(r.s_mm);
             }
-            dev = Some(d);
-        } else if offset_px.abs() > 3.0 || (ratio - 1.0).abs() > 0.3 {
-            return false;
+            n += 1;
+            sum_s += r.s_mm;
+            sum_c += r.offset_px;
+            sum_r += r.ratio;
         }
-        let k = self.line.add(s_mm, offset_px);
-        self.ratio = self.ratio * k + ratio;
-        if let Some(d) = dev {
-            self.width_dev2 = self.width_dev2 * k + d * d;
-            self.width_n = self.width_n * k + 1.0;
+        if n == 0 {
+            return 0;
         }
-        true
+        let inv = 1.0 / n as f64;
+        let k = self.line.add(sum_s * inv, sum_c * inv);
+        self.ratio = self.ratio * k + sum_r * inv;
+        self.width_dev2 = self.width_dev2 * k + dev2;
+        self.width_n = self.width_n * k + n_dev;
+        n
+    }
+
+    /// The gates: `Err` refuses the silhouette; `Ok` gives its half width's deviation from
+    /// the learnt radius, px, once there is a fit to compare with.
+    fn gate(&self, r: &Silhouette) -> Result<Option<f64>, ()> {
+        if self.line.n < 5.0 {
+            let plausible = r.offset_px.abs() <= 3.0 && (r.ratio - 1.0).abs() <= 0.3;
+            return if plausible { Ok(None) } else { Err(()) };
+        }
+        let (e, ratio) = self.at(r.s_mm);
+        if (r.offset_px - e).abs() > 0.75 || (r.ratio - ratio).abs() > 0.1 {
+            return Err(());
+        }
+        let d = (r.ratio - ratio) * r.radius_px;
+        if self.width_n >= Self::WIDTH_GATE_AFTER {
+            let sigma = (self.width_dev2 / self.width_n).sqrt();
+            if d.abs() > (Self::WIDTH_GATE_SIGMAS * sigma).max(Self::WIDTH_GATE_MIN_PX) {
+                return Err(());
+            }
+        }
+        Ok(Some(d))
     }
 
     /// Number of samples in the fit.
     pub fn samples(&self) -> f64 {
         self.line.n
+    }
+
+    /// How far beyond the covered span a place still counts as covered, mm.
+    const COVER_MARGIN_MM: f64 = 5.0;
+
+    /// True when samples were taken at or near `s_mm` (the line is not extrapolated there).
+    pub fn covers(&self, s_mm: f64) -> bool {
+        self.line.n >= 1.0
+            && s_mm >= self.s_lo - Self::COVER_MARGIN_MM
+            && s_mm <= self.s_hi + Self::COVER_MARGIN_MM
     }
 }
 
@@ -741,10 +798,13 @@ impl RodTracker {
         });
         st.frames_seen = st.frames_seen.wrapping_add(1);
         // Once the line is learnt, every 4th frame, then every 16th, is enough to follow slow
-        // changes.
+        // changes; but where the marker has not been yet, the line is extrapolated and every
+        // frame adds to it until it is learnt there too.
+        let u_mid = st.ring_u.iter().sum::<f64>() / st.ring_u.len().max(1) as f64;
         let every = match st.centre.samples() {
-            n if n < 300.0 => 1,
-            n if n < 3000.0 => 4,
+            _ if !st.centre.covers(p + u_mid) => 1,
+            n if n < 60.0 => 1,
+            n if n < 600.0 => 4,
             _ => 16,
         };
         if st.frames_seen % every == 0 {
@@ -1126,13 +1186,21 @@ impl EnhancedState {
     /// The rod's centre and apparent radius where the marker is: this frame's silhouettes of
     /// the marker's white rings feed the centre line learnt over all frames.
     fn learn_centre(&mut self, frame: &FrameView, position_mm: f64) {
-        for &u in &self.ring_u {
+        let mut rings = [Silhouette::default(); MAX_RINGS];
+        let mut n = 0;
+        for &u in self.ring_u.iter().take(MAX_RINGS) {
             let lp = self.knots.at(position_mm + u);
             if let Some((c, hw)) = ring_silhouette(frame, &lp) {
-                self.centre
-                    .add(position_mm + u, c, hw / lp.radius_px, lp.radius_px);
+                rings[n] = Silhouette {
+                    s_mm: position_mm + u,
+                    offset_px: c,
+                    ratio: hw / lp.radius_px,
+                    radius_px: lp.radius_px,
+                };
+                n += 1;
             }
         }
+        self.centre.add_frame(&rings[..n]);
     }
 
     /// The learnt centre's offset at marker `u` relative to the reference pose (calibration
@@ -1468,6 +1536,19 @@ struct PhaseFit {
     /// The stripes' mean level over bit space 0, on the barcode's scale (its black 0, its
     /// white 1 at each point across the rod): 0.5 when bit space 0 is lit as the barcode is.
     mean: f64,
+}
+
+/// One ring's silhouette, for [`CentreFit::add_frame`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Silhouette {
+    /// Axis coordinate of the ring, mm on the calibrated line.
+    pub s_mm: f64,
+    /// Centre offset across the calibrated line, px.
+    pub offset_px: f64,
+    /// Half width over the calibrated radius.
+    pub ratio: f64,
+    /// The calibrated radius there, px.
+    pub radius_px: f64,
 }
 
 /// The learnt centre line, seen from one frame's marker position.
