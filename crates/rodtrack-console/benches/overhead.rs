@@ -61,16 +61,21 @@ fn options() -> Options {
     o
 }
 
-/// One path's run: [share of the tracking time, median tracking per set s, median copy s].
-fn summarise(tm: &Timings, cameras: f64, live_fps: f64) -> [f64; 3] {
+/// One path's run, times in s: [share of the tracking time, tracking per set, live frame call,
+/// skipped frame (mean of the cameras' medians), `publish_rows` per set, the clock's cost in one
+/// interval]; calls and tracking are medians net of the clock's cost.
+fn summarise(tm: &Timings, cameras: f64, live_fps: f64) -> [f64; 6] {
     [
         tm.share_at(SETS_PER_S, cameras, cameras * live_fps),
-        median(&tm.track_s),
-        median(&tm.frame_copy_s),
+        tm.track_net(),
+        tm.net(&tm.frame_copy_s),
+        tm.skip_net(),
+        tm.net(&tm.rows_s),
+        tm.clock_s(),
     ]
 }
 
-fn run_paths(demo: &mut Demo, console: &ConsoleHandle, o: &Options) -> Vec<[[f64; 3]; 2]> {
+fn run_paths(demo: &mut Demo, console: &ConsoleHandle, o: &Options) -> Vec<[[f64; 6]; 2]> {
     let cameras = demo.cals.len() as f64;
     let mut runs = Vec::new();
     for r in 0..o.runs {
@@ -81,8 +86,9 @@ fn run_paths(demo: &mut Demo, console: &ConsoleHandle, o: &Options) -> Vec<[[f64
             summarise(&copy, cameras, LIVE_COPY_FPS),
         );
         eprintln!(
-            "run {}: swap {:.2} % (copy {:.0} us, {} copies), copy {:.2} % (copy {:.0} us, {} copies); \
-             tracking {:.0} / {:.0} us per set; skip {:.2} us, rows {:.2} us",
+            "run {}: swap {:.2} % (live {:.0} us, {} live), copy {:.2} % (live {:.0} us, {} live); \
+             tracking {:.0} / {:.0} us per set; skip {:.3} / {:.3} us, rows {:.3} / {:.3} us, \
+             clock {:.3} us (net of the clock)",
             r + 1,
             s[0] * 100.0,
             s[2] * 1e6,
@@ -92,8 +98,11 @@ fn run_paths(demo: &mut Demo, console: &ConsoleHandle, o: &Options) -> Vec<[[f64
             copy.frame_copy_s.len(),
             s[1] * 1e6,
             c[1] * 1e6,
-            median(&copy.frame_skip_s) * 1e6,
-            median(&copy.rows_s) * 1e6,
+            s[3] * 1e6,
+            c[3] * 1e6,
+            s[4] * 1e6,
+            c[4] * 1e6,
+            c[5] * 1e6,
         );
         runs.push([s, c]);
     }
@@ -131,22 +140,46 @@ fn main() {
         (runs, reader.join().unwrap())
     });
     let pick = |path: usize, k: usize| -> Vec<f64> { runs.iter().map(|r| r[path][k]).collect() };
+    let range = |path: usize| -> (f64, f64) {
+        let v = pick(path, 0);
+        (
+            v.iter().copied().fold(f64::INFINITY, f64::min) * 100.0,
+            v.iter().copied().fold(f64::NEG_INFINITY, f64::max) * 100.0,
+        )
+    };
     let (swap, copy) = (median(&pick(0, 0)), median(&pick(1, 0)));
+    let (swap_range, copy_range) = (range(0), range(1));
     println!(
         "console overhead, median of {} runs of {} frame sets at {SETS_PER_S:.0} sets/s, 2 cameras:",
         o.runs, o.frames
     );
     println!(
         "  publish_frame_buffer (swap, {LIVE_FPS} live frames/s):  {:.2} % of the tracking time \
-         (live frame call {:.0} us)",
+         (runs {:.2} to {:.2} %; live frame call {:.1} us)",
         swap * 100.0,
+        swap_range.0,
+        swap_range.1,
         median(&pick(0, 2)) * 1e6
     );
     println!(
         "  publish_frame (copy, {LIVE_COPY_FPS} live frames/s):        {:.2} % of the tracking time \
-         (live frame call {:.0} us)",
+         (runs {:.2} to {:.2} %; live frame call {:.1} us)",
         copy * 100.0,
+        copy_range.0,
+        copy_range.1,
         median(&pick(1, 2)) * 1e6
+    );
+    let both = |k: usize| -> f64 {
+        let mut v = pick(0, k);
+        v.extend(pick(1, k));
+        median(&v)
+    };
+    println!(
+        "  per call (medians, both paths): frame not wanted {:.3} us, publish_rows {:.3} us per \
+         set; the clock's own {:.3} us taken out of every interval",
+        both(3) * 1e6,
+        both(4) * 1e6,
+        both(5) * 1e6
     );
     println!(
         "  tracking {:.0} us per frame set (median); {received} live frames received by the client",

@@ -5,20 +5,30 @@
 //!
 //! # Never blocking the tracking
 //! The tracking side only ever *publishes*, and gives a live frame only when the console asks
-//! for one: while a browser is connected, the console sets a per-camera "want" flag a few times
-//! per second, and every other frame costs the tracking side two atomic loads
-//! ([`ConsoleHandle::wants_frame`]; no clock, no lock). A wanted frame is either copied,
+//! for one: while a browser is connected, the console sets a camera's "want" bit a few times
+//! per second, and every other frame costs the tracking side one atomic load
+//! ([`ConsoleHandle::wants_frame`]; no clock, no lock). Every camera's want and freeze bits
+//! share one word on a cache line of its own, so that the check is one line, which the other
+//! cameras' checks of the same frame set find in the cache (the tracking streams megabytes of
+//! pixels per frame set and evicts the console's lines: a chain of pointers to per-camera flags
+//! cost several cache misses, 0.25-0.3 us, per frame). A wanted frame is either copied,
 //! decimated to at most [`LIVE_COPY_MAX_WIDTH`] pixels across
 //! ([`ConsoleHandle::publish_frame`], [`LIVE_COPY_FPS`] per camera), or swapped in without a copy
 //! ([`ConsoleHandle::publish_frame_buffer`], [`LIVE_FPS`] per camera), into a latest-value slot
 //! (`try_lock`: when the console is reading the slot the frame is skipped).
-//! [`ConsoleHandle::publish_rows`] appends compact rows to a bounded, preallocated ring (oldest
-//! rows are dropped; the console copies rows out a few thousand per lock and formats them
-//! outside it); [`ConsoleHandle::publish_stats`] replaces the latest counters (`try_lock`). The
+//! [`ConsoleHandle::publish_rows`] packs compact rows into a preallocated ring of atomic words
+//! (oldest rows are overwritten) and makes them visible with one store: no lock, nothing the
+//! console can hold; the console copies the rows out and drops any a publisher overwrote
+//! meanwhile, as a sequence lock's reader would. [`ConsoleHandle::publish_stats`] replaces the
+//! latest counters (`try_lock`). What the tracking side writes (frame counts, the publish
+//! calls' accounting, the rows ring's positions) sits on lines the console only reads. The
 //! console's own thread (a one-worker tokio runtime serving axum) downscales, encodes and sends
 //! at its own pace. The time spent inside the publish calls is measured
 //! ([`ConsoleHandle::overhead`]); their share of the tracking time is the `overhead` bench
-//! (`cargo bench -p rodtrack-console --bench overhead`).
+//! (`cargo bench -p rodtrack-console --bench overhead -- --runs 9`): about 0.8 % with swapped
+//! live frames and 1.9-2.0 % with copied ones, most of it the copy itself (90-110 us, bound by
+//! memory bandwidth: it reads half the rows of a 1440x1080 Bayer frame, the fewest a 360x270
+//! colour preview needs, into a buffer last written half a second earlier).
 //!
 //! # API
 //! - [`Console::start`]`(addr, Option<CalibrationContext>) -> Result<ConsoleHandle>`
@@ -37,6 +47,7 @@ pub mod calib;
 pub mod error;
 pub mod image;
 pub mod overlay;
+pub(crate) mod rows;
 pub mod server;
 
 pub use calib::{CalibrationContext, CameraSetup, RodOutcome, Saved};
@@ -46,11 +57,11 @@ pub use overlay::{overlays_for, BitOverlay, MarkerOverlay, RodOverlay};
 
 use calib::CalibState;
 use rodtrack_core::{FrameView, Measurement};
+use rows::RowRing;
 use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, TryLockError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The default address: loopback only.
@@ -103,7 +114,7 @@ pub struct PipelineStats {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct PublishOverhead {
     /// Publish calls that did something (frame copies or swaps, rows, counters); frames offered
-    /// when no live frame is due return after two atomic loads and are only counted per camera.
+    /// when no live frame is due return after an atomic load and are only counted per camera.
     pub calls: u64,
     /// Total time inside them, ns.
     pub total_ns: u64,
@@ -125,85 +136,105 @@ pub(crate) struct LiveFrame {
     pub encoded: Option<(u64, axum::body::Bytes)>,
 }
 
-/// One camera's slots.
+/// One camera's slots (the console's side: the tracking side reads none of this unless it gives
+/// a frame).
 #[derive(Debug, Default)]
 pub(crate) struct CameraSlot {
-    pub seen: AtomicBool,
-    pub frames: AtomicU64,
-    /// Set by the console when it wants a new live frame, cleared by the tracking side when it
-    /// gives one: the tracking side's whole check is two atomic loads (this and `freeze`), no
-    /// clock.
-    pub want: AtomicBool,
     /// When the console last asked for a live frame (ns since `Shared::started`).
     pub last_request_ns: AtomicU64,
     /// The last live frame was copied ([`ConsoleHandle::publish_frame`]), not swapped in: the
     /// console asks at [`LIVE_COPY_FPS`] instead of [`LIVE_FPS`].
     pub copied: AtomicBool,
-    pub freeze: AtomicBool,
     pub live: Mutex<LiveFrame>,
 }
 
-/// What the plots use of a measurement row, compact (40 bytes instead of a [`Measurement`]'s
-/// 96): the ring is written on the tracking thread, so less is cheaper.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct PlotRow {
-    pub timestamp_s: f64,
-    pub angle_unwrapped_rad: f64,
-    pub position_mm: f32,
-    pub angle_rad: f32,
-    pub quality: f32,
-    pub rod: u32,
-    /// Camera index, -1 for fused rows.
-    pub camera: i32,
-    pub status: rodtrack_core::Status,
+/// Bit of camera `c`'s "want a live frame" request in [`Requests`]; its freeze request is this
+/// bit shifted by [`FREEZE_SHIFT`].
+const fn want_bit(camera: usize) -> u64 {
+    1 << camera
+}
+/// Shift from a camera's want bit to its freeze bit.
+const FREEZE_SHIFT: usize = 32;
+const WANT_MASK: u64 = (1 << MAX_CAMERAS) - 1;
+const _: () = assert!(MAX_CAMERAS <= FREEZE_SHIFT);
+
+/// The console's requests to the tracking side, every camera's in one word on a cache line of
+/// its own: the tracking side's per-frame check ([`ConsoleHandle::wants_frame`]) is one load of
+/// one line, which the other cameras' checks of the same frame set find in the cache. Bit `c`:
+/// camera `c` should give its next frame for the live view (set by the console at the live
+/// rate, cleared by the tracking side when it gives one); bit `c + FREEZE_SHIFT`: camera `c`
+/// should give its next frame whole for calibration.
+#[derive(Debug, Default)]
+#[repr(align(64))]
+pub(crate) struct Requests {
+    bits: AtomicU64,
 }
 
-impl PlotRow {
-    const EMPTY: PlotRow = PlotRow {
-        timestamp_s: 0.0,
-        angle_unwrapped_rad: 0.0,
-        position_mm: 0.0,
-        angle_rad: 0.0,
-        quality: 0.0,
-        rod: 0,
-        camera: -1,
-        status: rodtrack_core::Status::Lost,
-    };
+impl Requests {
+    /// True when camera `camera` (below [`MAX_CAMERAS`]) should give its next frame. One load.
+    #[inline]
+    fn due(&self, camera: usize) -> bool {
+        let bit = want_bit(camera);
+        self.bits.load(Ordering::Acquire) & (bit | bit << FREEZE_SHIFT) != 0
+    }
+    /// (live frame wanted, freeze pending) of `camera`.
+    fn get(&self, camera: usize) -> (bool, bool) {
+        let (bits, bit) = (self.bits.load(Ordering::Acquire), want_bit(camera));
+        (bits & bit != 0, bits & bit << FREEZE_SHIFT != 0)
+    }
+    pub(crate) fn freeze_pending(&self, camera: usize) -> bool {
+        camera < MAX_CAMERAS && self.get(camera).1
+    }
+    pub(crate) fn request_freeze(&self, camera: usize) {
+        if camera < MAX_CAMERAS {
+            self.bits
+                .fetch_or(want_bit(camera) << FREEZE_SHIFT, Ordering::Release);
+        }
+    }
+    fn request_live(&self, camera: usize) {
+        self.bits.fetch_or(want_bit(camera), Ordering::Release);
+    }
+    fn cancel_live(&self) {
+        self.bits.fetch_and(!WANT_MASK, Ordering::Relaxed);
+    }
+    fn clear(&self, bits: u64) {
+        self.bits.fetch_and(!bits, Ordering::Relaxed);
+    }
+}
 
-    fn new(m: &Measurement) -> PlotRow {
-        PlotRow {
-            timestamp_s: m.timestamp_s,
-            angle_unwrapped_rad: m.angle_unwrapped_rad,
-            position_mm: m.position_mm as f32,
-            angle_rad: m.angle_rad as f32,
-            quality: m.quality as f32,
-            rod: m.rod,
-            camera: match m.camera {
-                rodtrack_core::CameraId::Camera(c) => c as i32,
-                rodtrack_core::CameraId::Fused => -1,
-            },
-            status: m.status,
+/// Frames offered per camera, written only by the tracking side (on a line of their own).
+#[derive(Debug, Default)]
+#[repr(align(64))]
+pub(crate) struct FrameCounts {
+    frames: [AtomicU64; MAX_CAMERAS],
+}
+
+impl FrameCounts {
+    /// Frames of `camera` offered to [`ConsoleHandle::publish_frame`] or
+    /// [`ConsoleHandle::publish_frame_buffer`] (0: the camera was never seen).
+    pub(crate) fn frames(&self, camera: usize) -> u64 {
+        self.frames
+            .get(camera)
+            .map_or(0, |f| f.load(Ordering::Relaxed))
+    }
+    pub(crate) fn seen(&self, camera: usize) -> bool {
+        self.frames(camera) > 0
+    }
+    fn count(&self, camera: usize) {
+        if let Some(f) = self.frames.get(camera) {
+            f.fetch_add(1, Ordering::Relaxed);
         }
     }
 }
 
-/// The rows ring buffer: row `i` of `buf` has sequence number `next_seq - buf.len() + i`.
+/// The publish calls' own accounting ([`PublishOverhead`]), written by the tracking side only,
+/// on a line of its own.
 #[derive(Debug, Default)]
-pub(crate) struct RowRing {
-    pub buf: VecDeque<PlotRow>,
-    pub next_seq: u64,
-}
-
-impl RowRing {
-    /// Appends rows, dropping the oldest beyond [`ROW_CAPACITY`].
-    fn push<I: ExactSizeIterator<Item = PlotRow>>(&mut self, rows: I) {
-        let n = rows.len();
-        let skip = n.saturating_sub(ROW_CAPACITY);
-        let over = (self.buf.len() + n - skip).saturating_sub(ROW_CAPACITY);
-        self.buf.drain(..over);
-        self.buf.extend(rows.skip(skip));
-        self.next_seq += n as u64;
-    }
+#[repr(align(64))]
+pub(crate) struct Spent {
+    calls: AtomicU64,
+    total_ns: AtomicU64,
+    max_ns: AtomicU64,
 }
 
 /// Everything the tracking side and the console share.
@@ -213,15 +244,14 @@ pub(crate) struct Shared {
     pub clients: AtomicUsize,
     pub frame_interval_ns: u64,
     pub copy_interval_ns: u64,
+    /// The console's requests, read by the tracking side for every frame.
+    pub requests: Requests,
+    /// Frames offered per camera.
+    pub counts: FrameCounts,
     pub cameras: Vec<CameraSlot>,
-    pub rows: Mutex<RowRing>,
-    /// Rows published while the console held `rows` (only publishers lock this one).
-    pub waiting_rows: Mutex<Vec<PlotRow>>,
-    pub rows_waiting: AtomicBool,
+    pub rows: RowRing,
     pub stats: Mutex<Option<PipelineStats>>,
-    pub calls: AtomicU64,
-    pub total_ns: AtomicU64,
-    pub max_ns: AtomicU64,
+    pub spent: Spent,
     pub calib: Mutex<CalibState>,
 }
 
@@ -235,7 +265,7 @@ impl Shared {
     /// however many clients).
     pub(crate) fn request_live_frames(&self) {
         let now = self.now_ns();
-        for slot in &self.cameras {
+        for (camera, slot) in self.cameras.iter().enumerate() {
             let last = slot.last_request_ns.load(Ordering::Relaxed);
             let interval = if slot.copied.load(Ordering::Relaxed) {
                 self.copy_interval_ns
@@ -248,46 +278,32 @@ impl Shared {
                     .compare_exchange(last, now, Ordering::Relaxed, Ordering::Relaxed)
                     .is_ok()
             {
-                slot.want.store(true, Ordering::Release);
+                self.requests.request_live(camera);
             }
         }
     }
 
     /// The console's side: no client is left, no live frames are wanted.
     pub(crate) fn cancel_live_frames(&self) {
-        for slot in &self.cameras {
-            slot.want.store(false, Ordering::Relaxed);
-        }
-    }
-
-    /// True when the console wants `slot`'s next frame: a live frame was requested or a freeze
-    /// is pending. Two atomic loads.
-    fn due(slot: &CameraSlot) -> bool {
-        slot.want.load(Ordering::Acquire) || slot.freeze.load(Ordering::Relaxed)
-    }
-
-    /// Counts a frame offered by the tracking side.
-    fn count_frame(slot: &CameraSlot) {
-        if !slot.seen.load(Ordering::Relaxed) {
-            slot.seen.store(true, Ordering::Relaxed);
-        }
-        slot.frames.fetch_add(1, Ordering::Relaxed);
+        self.requests.cancel_live();
     }
 
     fn account(&self, t0: Instant) {
         let ns = t0.elapsed().as_nanos() as u64;
-        self.calls.fetch_add(1, Ordering::Relaxed);
-        self.total_ns.fetch_add(ns, Ordering::Relaxed);
-        if ns > self.max_ns.load(Ordering::Relaxed) {
-            self.max_ns.fetch_max(ns, Ordering::Relaxed);
+        let spent = &self.spent;
+        spent.calls.fetch_add(1, Ordering::Relaxed);
+        spent.total_ns.fetch_add(ns, Ordering::Relaxed);
+        if ns > spent.max_ns.load(Ordering::Relaxed) {
+            spent.max_ns.fetch_max(ns, Ordering::Relaxed);
         }
     }
 
     pub(crate) fn overhead(&self) -> PublishOverhead {
+        let (calls, total_ns, max_ns) = self.rows.spent();
         PublishOverhead {
-            calls: self.calls.load(Ordering::Relaxed),
-            total_ns: self.total_ns.load(Ordering::Relaxed),
-            max_ns: self.max_ns.load(Ordering::Relaxed),
+            calls: self.spent.calls.load(Ordering::Relaxed) + calls,
+            total_ns: self.spent.total_ns.load(Ordering::Relaxed) + total_ns,
+            max_ns: self.spent.max_ns.load(Ordering::Relaxed).max(max_ns),
         }
     }
 }
@@ -313,28 +329,18 @@ impl Console {
         let local = listener
             .local_addr()
             .map_err(|source| ConsoleError::Bind { addr, source })?;
-        // The rows' ring is allocated and touched once, here: growing it (or faulting its pages
-        // in) would happen under the lock the tracking side takes.
-        let mut ring = VecDeque::with_capacity(ROW_CAPACITY);
-        ring.resize(ROW_CAPACITY, PlotRow::EMPTY);
-        ring.clear();
         let started = Instant::now();
         let shared = Arc::new(Shared {
             started,
             clients: AtomicUsize::new(0),
             frame_interval_ns: (1e9 / LIVE_FPS) as u64,
             copy_interval_ns: (1e9 / LIVE_COPY_FPS) as u64,
+            requests: Requests::default(),
+            counts: FrameCounts::default(),
             cameras: (0..MAX_CAMERAS).map(|_| CameraSlot::default()).collect(),
-            rows: Mutex::new(RowRing {
-                buf: ring,
-                next_seq: 0,
-            }),
-            waiting_rows: Mutex::new(Vec::new()),
-            rows_waiting: AtomicBool::new(false),
+            rows: RowRing::new(),
             stats: Mutex::new(None),
-            calls: AtomicU64::new(0),
-            total_ns: AtomicU64::new(0),
-            max_ns: AtomicU64::new(0),
+            spent: Spent::default(),
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
         });
         let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -398,12 +404,12 @@ impl ConsoleHandle {
 
     /// True when the next [`ConsoleHandle::publish_frame`] of `camera` would copy the frame
     /// (a browser is connected and asked for a live frame, a few times per second, or a freeze
-    /// is pending): compute the overlays only then. Two atomic loads.
+    /// is pending): compute the overlays only then. One atomic load, of a word every camera's
+    /// requests share.
+    #[inline]
     pub fn wants_frame(&self, camera: u32) -> bool {
-        let Some(slot) = self.shared.cameras.get(camera as usize) else {
-            return false;
-        };
-        Shared::due(slot)
+        let camera = camera as usize;
+        camera < MAX_CAMERAS && self.shared.requests.due(camera)
     }
 
     /// Offers one camera's frame with its overlays. Cheap: it counts the frame and returns,
@@ -420,21 +426,26 @@ impl ConsoleHandle {
         overlays: &[RodOverlay],
     ) {
         let sh = &self.shared;
-        let Some(slot) = sh.cameras.get(camera as usize) else {
+        let c = camera as usize;
+        if c >= MAX_CAMERAS {
             return;
-        };
-        Shared::count_frame(slot);
-        if !Shared::due(slot) {
+        }
+        sh.counts.count(c);
+        if !sh.requests.due(c) {
             return;
         }
         let t0 = Instant::now();
-        if slot.freeze.load(Ordering::Relaxed) {
+        let Some(slot) = sh.cameras.get(c) else {
+            return;
+        };
+        let (want, freeze) = sh.requests.get(c);
+        if freeze {
             if let Ok(mut cal) = sh.calib.try_lock() {
                 cal.freeze(camera, OwnedFrame::from_view(frame, frame_id, timestamp_s));
-                slot.freeze.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c) << FREEZE_SHIFT);
             }
         }
-        if slot.want.load(Ordering::Acquire) {
+        if want {
             if let Ok(mut live) = slot.live.try_lock() {
                 let d = live_decimation(frame.width(), frame.format());
                 live.raw.copy_decimated(frame, d, frame_id, timestamp_s);
@@ -443,7 +454,7 @@ impl ConsoleHandle {
                 live.overlays.clear();
                 live.overlays.extend_from_slice(overlays);
                 live.seq += 1;
-                slot.want.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c));
                 slot.copied.store(true, Ordering::Relaxed);
             }
         }
@@ -468,25 +479,30 @@ impl ConsoleHandle {
         overlays: &[RodOverlay],
     ) -> bool {
         let sh = &self.shared;
-        let Some(slot) = sh.cameras.get(camera as usize) else {
+        let c = camera as usize;
+        if c >= MAX_CAMERAS {
             return false;
-        };
-        Shared::count_frame(slot);
-        if !Shared::due(slot) {
+        }
+        sh.counts.count(c);
+        if !sh.requests.due(c) {
             return false;
         }
         let t0 = Instant::now();
-        if slot.freeze.load(Ordering::Relaxed) {
+        let Some(slot) = sh.cameras.get(c) else {
+            return false;
+        };
+        let (want, freeze) = sh.requests.get(c);
+        if freeze {
             if let (Ok(view), Ok(mut cal)) = (
                 FrameView::new(buf, width, height, stride, format),
                 sh.calib.try_lock(),
             ) {
                 cal.freeze(camera, OwnedFrame::from_view(&view, frame_id, timestamp_s));
-                slot.freeze.store(false, Ordering::Relaxed);
+                sh.requests.clear(want_bit(c) << FREEZE_SHIFT);
             }
         }
         let mut taken = false;
-        if slot.want.load(Ordering::Acquire) {
+        if want {
             if let Ok(mut live) = slot.live.try_lock() {
                 if live
                     .raw
@@ -498,7 +514,7 @@ impl ConsoleHandle {
                     live.overlays.clear();
                     live.overlays.extend_from_slice(overlays);
                     live.seq += 1;
-                    slot.want.store(false, Ordering::Relaxed);
+                    sh.requests.clear(want_bit(c));
                     slot.copied.store(false, Ordering::Relaxed);
                     taken = true;
                 }
@@ -509,41 +525,16 @@ impl ConsoleHandle {
     }
 
     /// Appends measurement rows (any cameras, fused included) to the plots' ring buffer; the
-    /// oldest rows are dropped when it is full. Never waits for the console: when the console
-    /// is copying rows out of the ring (or was preempted doing so), the rows wait in a side
-    /// buffer that only publishers lock, and go into the ring with the next call.
+    /// oldest rows are overwritten when it is full. Never waits for the console and takes no
+    /// lock: the rows are packed into the ring's preallocated slots and made visible with one
+    /// store (several threads may publish; each waits only for those that claimed rows before
+    /// it to finish writing them).
     pub fn publish_rows(&self, rows: &[Measurement]) {
         if rows.is_empty() {
             return;
         }
         let t0 = Instant::now();
-        let sh = &self.shared;
-        let ring = match sh.rows.try_lock() {
-            Ok(g) => Some(g),
-            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
-            Err(TryLockError::WouldBlock) => None,
-        };
-        match ring {
-            Some(mut ring) => {
-                if sh.rows_waiting.load(Ordering::Acquire) {
-                    if let Ok(mut waiting) = sh.waiting_rows.lock() {
-                        ring.push(waiting.drain(..));
-                        sh.rows_waiting.store(false, Ordering::Release);
-                    }
-                }
-                ring.push(rows.iter().map(PlotRow::new));
-            }
-            None => {
-                if let Ok(mut waiting) = sh.waiting_rows.lock() {
-                    let over = (waiting.len() + rows.len()).saturating_sub(ROW_CAPACITY);
-                    let len = waiting.len();
-                    waiting.drain(..over.min(len));
-                    waiting.extend(rows.iter().map(PlotRow::new));
-                    sh.rows_waiting.store(true, Ordering::Release);
-                }
-            }
-        }
-        sh.account(t0);
+        self.shared.rows.publish(rows, t0);
     }
 
     /// Replaces the pipeline's counters shown on the page.
@@ -595,51 +586,6 @@ impl Drop for ConsoleHandle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rodtrack_core::{CameraId, Status};
-
-    fn rows(t: f64, n: u32) -> Vec<Measurement> {
-        (0..n)
-            .map(|rod| Measurement::empty(1, t, CameraId::Camera(0), rod, Status::Ok))
-            .collect()
-    }
-
-    #[test]
-    fn rows_never_wait_for_the_console() {
-        let console = Console::start("127.0.0.1:0".parse().unwrap(), None).unwrap();
-        let sh = console.shared.clone();
-        {
-            // The console is copying rows out: publishing does not wait for it.
-            let _held = sh.rows.lock().unwrap();
-            console.publish_rows(&rows(1.0, 3));
-            console.publish_rows(&rows(2.0, 2));
-            assert!(sh.rows_waiting.load(Ordering::Relaxed));
-        }
-        console.publish_rows(&rows(3.0, 1));
-        assert!(!sh.rows_waiting.load(Ordering::Relaxed));
-        let ring = sh.rows.lock().unwrap();
-        assert_eq!(ring.next_seq, 6);
-        let t: Vec<f64> = ring.buf.iter().map(|r| r.timestamp_s).collect();
-        assert_eq!(t, [1.0, 1.0, 1.0, 2.0, 2.0, 3.0]);
-    }
-
-    #[test]
-    fn the_ring_keeps_the_newest_rows() {
-        let mut ring = RowRing::default();
-        let row = |t: f64| PlotRow {
-            timestamp_s: t,
-            ..PlotRow::EMPTY
-        };
-        ring.push((0..ROW_CAPACITY - 1).map(|i| row(i as f64)));
-        ring.push((0..3).map(|i| row(1e6 + i as f64)));
-        assert_eq!(ring.buf.len(), ROW_CAPACITY);
-        assert_eq!(ring.next_seq, ROW_CAPACITY as u64 + 2);
-        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(2.0));
-        assert_eq!(ring.buf.back().map(|r| r.timestamp_s), Some(1e6 + 2.0));
-        // More than the ring holds at once: the last ROW_CAPACITY.
-        ring.push((0..ROW_CAPACITY + 5).map(|i| row(i as f64)));
-        assert_eq!(ring.buf.front().map(|r| r.timestamp_s), Some(5.0));
-        assert_eq!(ring.next_seq, 2 * ROW_CAPACITY as u64 + 7);
-    }
 
     #[test]
     fn live_frames_are_decimated_to_the_live_width() {

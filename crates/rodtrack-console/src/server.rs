@@ -24,7 +24,8 @@
 
 use crate::calib::{calibrate_camera, new_rod, save, CalibState, RodOutcome};
 use crate::image::{preview, OwnedFrame};
-use crate::{ConsoleError, PlotRow, RodOverlay, Shared};
+use crate::rows::PlotRow;
+use crate::{ConsoleError, RodOverlay, Shared};
 use axum::body::Bytes;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, State};
@@ -32,7 +33,6 @@ use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use rodtrack_core::Status;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::fmt::Write as _;
@@ -50,8 +50,6 @@ const LIVE_MAX_WIDTH: usize = 720;
 const TICK_MS: u64 = 40;
 /// Most rows in one message.
 const MAX_ROWS_PER_MESSAGE: usize = 20_000;
-/// Most rows copied out of the ring per lock.
-const ROWS_PER_LOCK: usize = 4096;
 
 #[derive(Clone)]
 struct AppState {
@@ -136,8 +134,8 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         .cameras
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.seen.load(Ordering::Relaxed))
-        .map(|(i, s)| json!({ "index": i, "frames": s.frames.load(Ordering::Relaxed) }))
+        .filter(|(i, _)| sh.counts.seen(*i))
+        .map(|(i, _)| json!({ "index": i, "frames": sh.counts.frames(i) }))
         .collect();
     let stats = *lock(&sh.stats);
     json!({
@@ -174,10 +172,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
                 width: f.width(),
                 height: f.height(),
             });
-            let pending = sh
-                .cameras
-                .get(c.index as usize)
-                .is_some_and(|s| s.freeze.load(Ordering::Relaxed));
+            let pending = sh.requests.freeze_pending(c.index as usize);
             json!({
                 "index": c.index,
                 "name": c.inputs.camera_name,
@@ -193,7 +188,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
         .cameras
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.seen.load(Ordering::Relaxed))
+        .filter(|(i, _)| sh.counts.seen(*i))
         .map(|(i, _)| i)
         .collect();
     json!({
@@ -213,16 +208,14 @@ async fn freeze(
     State(st): State<AppState>,
     Path(cam): Path<u32>,
 ) -> ApiResult<Json<serde_json::Value>> {
-    let slot = st
-        .shared
-        .cameras
-        .get(cam as usize)
-        .filter(|s| s.seen.load(Ordering::Relaxed))
-        .ok_or(ConsoleError::Camera {
+    if !st.shared.counts.seen(cam as usize) {
+        return Err(ConsoleError::Camera {
             camera: cam,
             reason: "no live frames to freeze".into(),
-        })?;
-    slot.freeze.store(true, Ordering::Relaxed);
+        }
+        .into());
+    }
+    st.shared.requests.request_freeze(cam as usize);
     Ok(Json(json!({ "freeze_pending": true })))
 }
 
@@ -528,44 +521,15 @@ impl Drop for ClientGuard {
     }
 }
 
-fn status_code(s: Status) -> u8 {
-    match s {
-        Status::Ok => 0,
-        Status::NotFound => 1,
-        Status::Occluded => 2,
-        Status::OutOfView => 3,
-        Status::Predicted => 4,
-        Status::Lost => 5,
-        Status::BadFrame => 6,
-    }
-}
-
 /// Rows from sequence `cursor` on, as one compact JSON message; returns the new cursor. The
-/// rows are copied out under the lock (the tracking side's `publish_rows` waits for it) and
-/// formatted after it is released.
+/// rows are copied out of the ring (no lock: the tracking side never waits for the console)
+/// and formatted after.
 fn rows_message(sh: &Shared, cursor: u64, scratch: &mut Vec<PlotRow>) -> (Option<String>, u64) {
     scratch.clear();
-    let mut from = cursor;
-    // A few thousand rows per lock: the tracking side never waits more than microseconds.
-    while scratch.len() < MAX_ROWS_PER_MESSAGE {
-        let ring = lock(&sh.rows);
-        let first = ring.next_seq - ring.buf.len() as u64;
-        from = from.max(first);
-        let want = (MAX_ROWS_PER_MESSAGE - scratch.len()).min(ROWS_PER_LOCK) as u64;
-        let to = ring.next_seq.min(from + want);
-        if to <= from {
-            break;
-        }
-        scratch.extend(
-            ring.buf
-                .range((from - first) as usize..(to - first) as usize),
-        );
-        from = to;
-    }
+    let to = sh.rows.read(cursor, MAX_ROWS_PER_MESSAGE, scratch);
     if scratch.is_empty() {
-        return (None, from);
+        return (None, to);
     }
-    let to = from;
     let mut s = String::with_capacity(scratch.len() * 48 + 32);
     s.push_str("{\"t\":\"rows\",\"rows\":[");
     for (i, m) in scratch.iter().enumerate() {
@@ -589,7 +553,7 @@ fn push_row(s: &mut String, m: &PlotRow, comma: bool) {
         m.angle_unwrapped_rad,
         m.angle_rad,
         m.quality,
-        status_code(m.status)
+        m.status
     );
 }
 
@@ -635,7 +599,7 @@ async fn client(mut socket: WebSocket, st: AppState) {
             }
         }
         for (cam, slot) in sh.cameras.iter().enumerate() {
-            if !slot.seen.load(Ordering::Relaxed) {
+            if !sh.counts.seen(cam) {
                 continue;
             }
             let msg = {

@@ -11,6 +11,10 @@
 //! - [`runtime`]: capture threads, bounded queues, per-camera processing, frame-set grouping,
 //!   latency statistics.
 
+// The runtime's unit tests share their fakes with the integration tests, which name this crate.
+#[cfg(test)]
+extern crate self as rodtrack_io;
+
 pub mod error;
 pub mod frame;
 pub mod marker_print;

@@ -1,123 +1,15 @@
 //! The pipeline with in-test frame sources.
 #![allow(clippy::unwrap_used, missing_docs)]
 
-use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
-use rodtrack_io::runtime::{Grouping, Mode, Pipeline, PipelineConfig, ProcessFn};
-use rodtrack_io::{
-    read_measurements_csv, CsvSink, FrameBuffer, FrameSource, IoError, MeasurementSink, SourceInfo,
-    Timestamp,
-};
-use std::collections::HashSet;
+#[path = "common/runtime_fakes.rs"]
+mod runtime_fakes;
+
+use rodtrack_core::{CameraId, PixelFormat, Status};
+use rodtrack_io::runtime::{Grouping, Handoff, Mode, Pipeline, PipelineConfig};
+use rodtrack_io::{read_measurements_csv, CsvSink, FrameSource};
+use runtime_fakes::{tracker, Fake, Writes};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-
-/// Generates 8x6 mono8 frames filled with `frame_id % 256`.
-struct Fake {
-    ids: Box<dyn Iterator<Item = u64> + Send>,
-    delay: Duration,
-    bad: HashSet<u64>,
-    /// Added to `id * 5 ms` for the timestamp.
-    ts_offset_ns: u64,
-    /// Sleep this long before delivering frame `.0`.
-    stall: Option<(u64, Duration)>,
-    /// Bad frames do not report their id.
-    hide_bad_ids: bool,
-}
-
-impl Fake {
-    fn new(ids: impl Iterator<Item = u64> + Send + 'static) -> Self {
-        Fake {
-            ids: Box::new(ids),
-            delay: Duration::ZERO,
-            bad: HashSet::new(),
-            ts_offset_ns: 0,
-            stall: None,
-            hide_bad_ids: false,
-        }
-    }
-}
-
-impl FrameSource for Fake {
-    fn info(&self) -> SourceInfo {
-        SourceInfo {
-            name: "fake".into(),
-            width: 8,
-            height: 6,
-            format: PixelFormat::Mono8,
-            fps: Some(200.0),
-            frame_count: None,
-            live: true,
-        }
-    }
-    fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, IoError> {
-        let Some(id) = self.ids.next() else {
-            return Ok(None);
-        };
-        if let Some((at, d)) = self.stall {
-            if at == id {
-                std::thread::sleep(d);
-            }
-        }
-        std::thread::sleep(self.delay);
-        if self.bad.contains(&id) && self.hide_bad_ids {
-            return Err(IoError::Decode {
-                path: "stream".into(),
-                reason: format!("lost frame {id}"),
-            });
-        }
-        buf.meta.frame_id = id;
-        buf.meta.timestamp_ns = Timestamp(id * 5_000_000 + self.ts_offset_ns);
-        if self.bad.contains(&id) {
-            return Err(IoError::Decode {
-                path: format!("fake{id}.png").into(),
-                reason: "simulated".into(),
-            });
-        }
-        buf.reshape_packed(8, 6, PixelFormat::Mono8);
-        buf.data.fill((id % 256) as u8);
-        Ok(Some(()))
-    }
-}
-
-/// Two rows per frame (rods 0 and 1) with the pixel value as position; one `bad_frame` row
-/// for a bad frame. Sleeps `work` per frame.
-fn tracker(work: Duration) -> ProcessFn {
-    Box::new(move |meta, view, out| {
-        std::thread::sleep(work);
-        let ts = meta.timestamp_ns.as_secs_f64();
-        let cam = CameraId::Camera(meta.camera);
-        match view {
-            Ok(v) => {
-                for rod in 0..2 {
-                    let mut m = Measurement::empty(meta.frame_id, ts, cam, rod, Status::Ok);
-                    m.position_mm = f64::from(v.luma_node(3, 3));
-                    m.quality = 1.0;
-                    out.push(m);
-                }
-            }
-            Err(_) => out.push(Measurement::empty(
-                meta.frame_id,
-                ts,
-                cam,
-                0,
-                Status::BadFrame,
-            )),
-        }
-    })
-}
-
-/// Keeps each `write` call's rows.
-#[derive(Default)]
-struct Sets(Vec<Vec<Measurement>>);
-impl MeasurementSink for Sets {
-    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        self.0.push(rows.to_vec());
-        Ok(())
-    }
-    fn flush(&mut self) -> Result<(), IoError> {
-        Ok(())
-    }
-}
 
 fn config(mode: Mode) -> PipelineConfig {
     PipelineConfig {
@@ -138,7 +30,7 @@ fn groups_two_cameras_by_frame_id() {
         m.camera = CameraId::Fused;
         out.push(m);
     }));
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let r = p.run(&mut sink).unwrap();
     assert_eq!(
         (r.sets_complete, r.sets_incomplete, r.rows_written),
@@ -163,7 +55,7 @@ fn groups_two_cameras_by_frame_id() {
             );
             assert_eq!(
                 m.position_mm,
-                (i % 256) as f64,
+                (i % 256) as f64 + f64::from(m.rod),
                 "the view holds that frame's pixels"
             );
         }
@@ -197,7 +89,7 @@ fn a_missing_frame_is_reported_without_waiting() {
         Box::new(Fake::new((0..20).filter(|i| *i != 5))),
         tracker(Duration::ZERO),
     );
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let t = Instant::now();
     let r = p.run(&mut sink).unwrap();
     assert!(
@@ -234,7 +126,7 @@ fn a_stalled_camera_is_not_waited_for_beyond_the_timeout() {
     b.stall = Some((10, Duration::from_millis(700)));
     p.add_camera(Box::new(a), tracker(Duration::ZERO));
     p.add_camera(Box::new(b), tracker(Duration::ZERO));
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let r = p.run(&mut sink).unwrap();
     // Camera 0's frames 10..39 went out after about the timeout, not after the stall.
     let cam0_frames: usize = sink
@@ -282,7 +174,7 @@ fn a_slow_consumer_makes_live_capture_drop_and_batch_block() {
         let mut src = Fake::new(0..100);
         src.delay = Duration::from_micros(200);
         p.add_camera(Box::new(src), tracker(Duration::from_millis(3)));
-        let mut sink = Sets::default();
+        let mut sink = Writes::default();
         let r = p.run(&mut sink).unwrap();
         let c = &r.cameras[0];
         assert_eq!(c.frames_read, 100);
@@ -307,7 +199,7 @@ fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
     let mut src = Fake::new(0..10);
     src.bad = [3, 4].into_iter().collect();
     p.add_camera(Box::new(src), tracker(Duration::ZERO));
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let r = p.run(&mut sink).unwrap();
     let c = &r.cameras[0];
     assert_eq!(
@@ -325,7 +217,7 @@ fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
     src.bad = [0, 6].into_iter().collect();
     src.hide_bad_ids = true;
     p.add_camera(Box::new(src), tracker(Duration::ZERO));
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let r = p.run(&mut sink).unwrap();
     assert_eq!(r.cameras[0].bad_frames, 2);
     let ids: Vec<u64> = sink.0.iter().map(|s| s[0].frame).collect();
@@ -385,7 +277,7 @@ fn paced_mode_follows_the_timestamps() {
     for (speed, min_ms) in [(1.0, 90u64), (2.0, 45)] {
         let mut p = Pipeline::new(config(Mode::Paced { speed }));
         p.add_camera(Box::new(Fake::new(0..20)), tracker(Duration::ZERO));
-        let mut sink = Sets::default();
+        let mut sink = Writes::default();
         let r = p.run(&mut sink).unwrap();
         // 20 frames 5 ms apart: the last is released 95 ms (at 1x) after the first.
         assert!(
@@ -398,7 +290,7 @@ fn paced_mode_follows_the_timestamps() {
     }
     let bad = Pipeline::new(config(Mode::Paced { speed: 0.0 }));
     assert!(
-        bad.run(&mut Sets::default()).is_err(),
+        bad.run(&mut Writes::default()).is_err(),
         "no cameras / bad speed"
     );
 }
@@ -415,7 +307,7 @@ fn groups_by_timestamp_window() {
     let mut b = Fake::new(0..30);
     b.ts_offset_ns = 300_000;
     p.add_camera(Box::new(b), tracker(Duration::ZERO));
-    let mut sink = Sets::default();
+    let mut sink = Writes::default();
     let r = p.run(&mut sink).unwrap();
     assert_eq!((r.sets_complete, r.sets_incomplete), (30, 0));
     for set in &sink.0 {
@@ -424,29 +316,41 @@ fn groups_by_timestamp_window() {
     }
 }
 
+/// A tracker that panics ends its camera only, run on the camera's own thread (`run`) or on
+/// the capture thread (`Handoff::Inline`, `run_direct`); the rows before are kept.
 #[test]
 fn a_panicking_tracker_ends_its_camera_but_rows_are_kept() {
-    let mut p = Pipeline::new(config(Mode::Batch));
-    p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
-    let mut inner = tracker(Duration::ZERO);
-    p.add_camera(
-        Box::new(Fake::new(0..50)),
-        Box::new(move |meta, view, out| {
-            if meta.frame_id == 20 {
-                panic!("tracker bug");
-            }
-            inner(meta, view, out)
-        }),
-    );
-    let mut sink = Sets::default();
-    let r = p.run(&mut sink).unwrap();
-    assert_eq!(r.cameras[0].frames_processed, 50);
-    assert!(
-        r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
-        "{r:?}"
-    );
-    assert_eq!(sink.0.len(), 50);
-    assert_eq!(r.rows_written, 100 + 40);
+    for (handoff, direct) in [(Handoff::Queue, false), (Handoff::Inline, true)] {
+        let mut p = Pipeline::new(PipelineConfig {
+            mode: Mode::Batch,
+            handoff,
+            ..Default::default()
+        });
+        p.add_camera(Box::new(Fake::new(0..50)), tracker(Duration::ZERO));
+        let mut inner = tracker(Duration::ZERO);
+        p.add_camera(
+            Box::new(Fake::new(0..50)),
+            Box::new(move |meta, view, out| {
+                if meta.frame_id == 20 {
+                    panic!("tracker bug");
+                }
+                inner(meta, view, out)
+            }),
+        );
+        let (r, sink) = if direct {
+            p.run_direct(Writes::default()).unwrap()
+        } else {
+            let mut sink = Writes::default();
+            (p.run(&mut sink).unwrap(), sink)
+        };
+        assert_eq!(r.cameras[0].frames_processed, 50, "{handoff:?}");
+        assert!(
+            r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
+            "{handoff:?}: {r:?}"
+        );
+        assert_eq!(sink.0.len(), 50, "{handoff:?}");
+        assert_eq!(r.rows_written, 100 + 40, "{handoff:?}");
+    }
 }
 
 #[test]

@@ -1,12 +1,16 @@
 //! Writing a recording to disk: frames as PNG, reference frames, calibration inputs, truth CSV.
 //!
 //! Layout (`out_dir`):
-//! - `<cam>/NNNNNN.png`: every frame (Bayer raw as 8-bit grey, mono8 grey, rgb8 colour); the
-//!   number is the frame id;
+//! - `<cam>/NNNNNN.png`: every frame written (Bayer raw as 8-bit grey, mono8 grey, rgb8
+//!   colour); the number is the frame id, the frame's index in the scenario's timeline (so
+//!   `id / fps` is its capture time even when only every K-th frame is written);
 //! - `<cam>_ref/000000.png`: the reference frame (rods at their reference poses, no hands);
 //! - `<cam>.json`: calibration inputs (SPEC section 5);
-//! - `truth.csv`: SPEC section 6 columns plus `visible`, `camera` = camera index;
-//! - `sim.json`: the scene, cameras, scenario and seed that made it.
+//! - `<cam>_intrinsics.yml`: the camera's true model as OpenCV's `cv::FileStorage` writes it
+//!   after `calibrateCamera` (when the calibration inputs hold the model);
+//! - `truth.csv`: SPEC section 6 columns plus `visible`, `camera` = camera index; rows of the
+//!   frames written only;
+//! - `sim.json`: the scene, cameras, scenario, seed and frames that made it.
 
 use crate::sim::{CalibOptions, Simulation, TruthRow};
 use crate::SimError;
@@ -16,6 +20,7 @@ use rodtrack_core::measurement::CSV_COLUMNS;
 use rodtrack_core::PixelFormat;
 use std::fs;
 use std::io::{BufWriter, Write};
+use std::num::NonZeroUsize;
 use std::ops::Range;
 use std::path::Path;
 
@@ -24,6 +29,10 @@ use std::path::Path;
 pub struct RecordOptions {
     /// Frames to write (default: all of the scenario).
     pub frames: Option<Range<usize>>,
+    /// Write only every `every`-th frame of `frames` (its first, then every `every`-th after
+    /// it), as a camera at `fps / every` would record the scenario. Frame ids and timestamps
+    /// stay those of the scenario's timeline; the truth holds the written frames' rows only.
+    pub every: NonZeroUsize,
     /// Seed for the calibration clicks.
     pub calib_seed: u64,
     /// Calibration options (omit the OpenCV model, click noise, ...).
@@ -38,6 +47,7 @@ impl Default for RecordOptions {
     fn default() -> Self {
         RecordOptions {
             frames: None,
+            every: NonZeroUsize::MIN,
             calib_seed: 1,
             calib: CalibOptions::default(),
             parallel: true,
@@ -124,7 +134,7 @@ pub fn truth_csv_header() -> String {
 }
 
 /// Writes a whole recording (see the module docs). `progress(done, total)` is called after
-/// every frame. Deterministic for a seed.
+/// every frame written. Deterministic for a seed.
 pub fn write_recording(
     sim: &mut Simulation,
     out_dir: &Path,
@@ -145,6 +155,7 @@ pub fn write_recording(
         "mode": sim.ctx.mode,
         "seed": sim.ctx.seed,
         "frames": [frames.start, frames.end],
+        "every": opts.every,
     });
     let p = out_dir.join("sim.json");
     fs::write(
@@ -177,15 +188,20 @@ pub fn write_recording(
         let p = out_dir.join(format!("{}.json", cam.name));
         let text = serde_json::to_string_pretty(&inputs).map_err(|e| io_err(&p, e))?;
         fs::write(&p, text).map_err(|e| io_err(&p, e))?;
+        if let Some(model) = &inputs.opencv_model_optional {
+            let p = out_dir.join(format!("{}_intrinsics.yml", cam.name));
+            fs::write(&p, model.to_file_storage_yaml(inputs.image_size))
+                .map_err(|e| io_err(&p, e))?;
+        }
     }
     let tp = out_dir.join("truth.csv");
     let tf = fs::File::create(&tp).map_err(|e| io_err(&tp, e))?;
     let mut truth = BufWriter::new(tf);
     writeln!(truth, "{}", truth_csv_header()).map_err(|e| io_err(&tp, e))?;
-    let total = frames.len();
+    let total = frames.len().div_ceil(opts.every.get());
     let mut rows = 0usize;
     let names: Vec<String> = sim.ctx.cameras.iter().map(|c| c.name.clone()).collect();
-    for (done, fi) in frames.enumerate() {
+    for (done, fi) in frames.step_by(opts.every.get()).enumerate() {
         let ctx = &sim.ctx;
         let results: Vec<Result<(), SimError>> = if opts.parallel && ncam > 1 {
             std::thread::scope(|s| {

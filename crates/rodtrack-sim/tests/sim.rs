@@ -301,15 +301,21 @@ fn setup_variations_build_and_render() {
     assert_eq!(ci.rods[0].marker.rod_diameter_mm, 20.0);
 }
 
-#[test]
-fn recording_is_written_and_deterministic() {
+/// Both cameras over `scenario` (seed 9), and a fresh temporary folder `name` to record into.
+fn recording_setup(scenario: &str, name: &str) -> (Simulation, std::path::PathBuf) {
     let scene = SceneConfig::default();
-    let sc = Scenario::by_name("exp3", &scene, 1).unwrap();
-    let dir = std::env::temp_dir().join(format!("rodtrack_sim_rec_{}", std::process::id()));
+    let sc = Scenario::by_name(scenario, &scene, 1).unwrap();
+    let dir = std::env::temp_dir().join(format!("{name}_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let mut s = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
+    let s = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
         .unwrap()
         .with_seed(9);
+    (s, dir)
+}
+
+#[test]
+fn recording_is_written_and_deterministic() {
+    let (mut s, dir) = recording_setup("exp3", "rodtrack_sim_rec");
     let opts = RecordOptions {
         frames: Some(10..13),
         ..RecordOptions::default()
@@ -351,6 +357,63 @@ fn recording_is_written_and_deterministic() {
     );
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&dir2);
+}
+
+/// `every`: one frame in K, named and timed as in the full timeline, truth rows of those
+/// frames only; the camera models as OpenCV files beside the calibration inputs.
+#[test]
+fn recording_every_kth_frame_keeps_ids_times_and_truth_together() {
+    let (mut s, dir) = recording_setup("sweep", "rodtrack_sim_every");
+    let opts = RecordOptions {
+        frames: Some(10..15),
+        every: std::num::NonZeroUsize::new(2).unwrap(),
+        ..RecordOptions::default()
+    };
+    let mut calls = vec![];
+    let sum = write_recording(&mut s, &dir, &opts, &mut |d, t| calls.push((d, t))).unwrap();
+    assert_eq!(calls, vec![(1, 3), (2, 3), (3, 3)]);
+    assert_eq!((sum.frames, sum.truth_rows), (3, 3 * 2 * 8));
+    for cam in ["cam0", "cam1"] {
+        let mut names: Vec<String> = std::fs::read_dir(dir.join(cam))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["000010.png", "000012.png", "000014.png"]);
+        let text = std::fs::read_to_string(dir.join(format!("{cam}.json"))).unwrap();
+        let ci: CalibrationInputs = serde_json::from_str(&text).unwrap();
+        let yml = std::fs::read_to_string(dir.join(format!("{cam}_intrinsics.yml"))).unwrap();
+        let model = rodtrack_core::calib::opencv::parse_opencv_model(&yml).unwrap();
+        let want = ci.opencv_model_optional.unwrap();
+        assert_eq!(model.dist_coeffs.len(), want.dist_coeffs.len());
+        let k = model.camera_matrix.as_flattened();
+        let k_want = want.camera_matrix.as_flattened();
+        for (a, b) in k
+            .iter()
+            .zip(k_want)
+            .chain(model.dist_coeffs.iter().zip(&want.dist_coeffs))
+        {
+            assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{cam}: {a} {b}");
+        }
+    }
+    let csv = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    let frames_and_times: std::collections::BTreeSet<(String, String)> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let mut f = l.split(',');
+            (f.next().unwrap().into(), f.next().unwrap().into())
+        })
+        .collect();
+    let want: std::collections::BTreeSet<(String, String)> =
+        [("10", "0.050000"), ("12", "0.060000"), ("14", "0.070000")]
+            .map(|(f, t)| (f.to_string(), t.to_string()))
+            .into();
+    assert_eq!(frames_and_times, want);
+    let desc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sim.json")).unwrap()).unwrap();
+    assert_eq!(desc["every"], 2);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Temporal noise matches the sensor model: variance = read^2 + mean / gain (in DN), on the

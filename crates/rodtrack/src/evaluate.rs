@@ -609,7 +609,40 @@ fn stat_row(s: &Stats) -> String {
     )
 }
 
-const STAT_HEADER: &str = "| mode | rows ok | pos mean mm | pos std mm | pos max mm | ang mean rad | ang std rad | ang max rad | gross | coverage | false ok | wrong ok |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+/// The columns of [`stat_row`].
+const STAT_COLUMNS: [&str; 11] = [
+    "rows ok",
+    "pos mean mm",
+    "pos std mm",
+    "pos max mm",
+    "ang mean rad",
+    "ang std rad",
+    "ang max rad",
+    "gross",
+    "coverage",
+    "false ok",
+    "wrong ok",
+];
+
+/// The header of a Markdown table of statistics: the columns `keys` (name, alignment) that
+/// name the row, then [`STAT_COLUMNS`], right-aligned.
+fn stat_header(keys: &[(&str, &str)]) -> String {
+    let names: Vec<&str> = keys.iter().map(|k| k.0).chain(STAT_COLUMNS).collect();
+    let aligns: Vec<&str> = keys
+        .iter()
+        .map(|k| k.1)
+        .chain(STAT_COLUMNS.map(|_| "---:"))
+        .collect();
+    format!("| {} |\n|{}|\n", names.join(" | "), aligns.join("|"))
+}
+
+/// A table of statistics with one row per mode, in [`MODES`] order.
+fn push_mode_table(md: &mut String, stats: &[Stats]) {
+    md.push_str(&stat_header(&[("mode", "---")]));
+    for (name, s) in MODES.iter().zip(stats) {
+        let _ = writeln!(md, "| {name} {}", stat_row(s));
+    }
+}
 
 /// "tracked" at top speed: coverage >= 95 % and gross <= 1 % of ok rows.
 fn speed_cell(r: &ScenarioResult, mode: usize) -> String {
@@ -814,6 +847,17 @@ const TRUTH_COLOUR: RGBColor = RGBColor(0, 0, 0);
 const PAPER_COLOUR: RGBColor = RGBColor(213, 94, 0);
 const OURS_COLOUR: RGBColor = RGBColor(0, 114, 178);
 
+/// rodtrack's best rows and their camera: fused and filtered with several cameras, else
+/// camera 0's filtered rows.
+fn ours(rows: &ScenarioRows, fused: bool) -> (&Rows, CameraId) {
+    if fused {
+        (&rows.modes[3], CameraId::Fused)
+    } else {
+        (&rows.modes[2], CameraId::Camera(0))
+    }
+}
+
+/// Truth, paper mode and rodtrack of [`PLOT_ROD`] over time.
 fn three(
     rows: &ScenarioRows,
     fused: bool,
@@ -821,16 +865,7 @@ fn three(
     unwrap: bool,
 ) -> Vec<Series> {
     let truth = truth_of(&rows.truth, PLOT_ROD, value);
-    let ours_cam = if fused {
-        CameraId::Fused
-    } else {
-        CameraId::Camera(0)
-    };
-    let ours_rows = if fused {
-        &rows.modes[3]
-    } else {
-        &rows.modes[2]
-    };
+    let (ours_rows, ours_cam) = ours(rows, fused);
     let mut paper = series_of(&rows.modes[0], PLOT_ROD, CameraId::Camera(0), value);
     let mut ours = series_of(ours_rows, PLOT_ROD, ours_cam, value);
     if unwrap {
@@ -883,6 +918,11 @@ fn moves(truth: &Rows, rod: u32, v: f64) -> Vec<(f64, f64)> {
 
 fn plots(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(String, String)>> {
     let mut written = Vec::new();
+    let mut emit = |fig: &Figure, stem: &str, caption: String| -> Result<()> {
+        write_figure(fig, out, stem)?;
+        written.push((stem.to_string(), caption));
+        Ok(())
+    };
     let rows_of =
         |name: &str| find(results, name).and_then(|r| r.rows.as_deref().map(|rows| (r, rows)));
     if let Some((r, rows)) = rows_of("exp1") {
@@ -933,25 +973,16 @@ fn plots(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(String, String)>
                 },
             ],
         };
-        write_figure(&fig, out, "fig13_exp1_position")?;
-        written.push((
-            "fig13_exp1_position".to_string(),
+        emit(
+            &fig,
+            "fig13_exp1_position",
             format!("Experiment 1 (paper figure 13): rod {PLOT_ROD}'s position over time, commanded (black, thick), the paper's algorithm on camera 0 (orange) and rodtrack fused and filtered (blue); below, a zoom on the end of the third step and the hold after it, 4 mm high (on the middle of the run when it is too short). {}", stride_note(r)),
-        ));
+        )?;
     }
     if let Some((r, rows)) = rows_of("exp2") {
         let fused = r.cameras > 1;
         let top = three(rows, fused, |m| m.angle_unwrapped_rad, true);
-        let ours_cam = if fused {
-            CameraId::Fused
-        } else {
-            CameraId::Camera(0)
-        };
-        let ours_rows = if fused {
-            &rows.modes[3]
-        } else {
-            &rows.modes[2]
-        };
+        let (ours_rows, ours_cam) = ours(rows, fused);
         let fig = Figure {
             size: (1200, 900),
             panels: vec![
@@ -998,11 +1029,11 @@ fn plots(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(String, String)>
                 },
             ],
         };
-        write_figure(&fig, out, "fig14_exp2_angle")?;
-        written.push((
-            "fig14_exp2_angle".to_string(),
+        emit(
+            &fig,
+            "fig14_exp2_angle",
             format!("Experiment 2 (paper figure 14): rod {PLOT_ROD}'s unwrapped angle over time (commanded black, paper mode orange, rodtrack blue) and the angle error of each (dots; grey lines: the paper's +/-0.03 rad bound; errors beyond +/-0.08 rad are clipped to the frame). {}", stride_note(r)),
-        ));
+        )?;
     }
     if let Some((r, rows)) = rows_of("exp3") {
         let fused = r.cameras > 1;
@@ -1025,24 +1056,15 @@ fn plots(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(String, String)>
                 },
             ],
         };
-        write_figure(&fig, out, "fig15_exp3_position_angle")?;
-        written.push((
-            "fig15_exp3_position_angle".to_string(),
+        emit(
+            &fig,
+            "fig15_exp3_position_angle",
             format!("Experiment 3 (paper figure 15): rod {PLOT_ROD}'s position (top) and unwrapped angle (bottom) over time; commanded black, paper mode orange, rodtrack blue. {}", stride_note(r)),
-        ));
+        )?;
     }
     if let Some((r, rows)) = rows_of("gameplay") {
         let fused = r.cameras > 1;
-        let ours_rows = if fused {
-            &rows.modes[3]
-        } else {
-            &rows.modes[2]
-        };
-        let ours_cam = if fused {
-            CameraId::Fused
-        } else {
-            CameraId::Camera(0)
-        };
+        let (ours_rows, ours_cam) = ours(rows, fused);
         let rods: std::collections::BTreeSet<u32> = rows.truth.iter().map(|(m, _)| m.rod).collect();
         let mut pos = Vec::new();
         let mut ang = Vec::new();
@@ -1104,11 +1126,11 @@ fn plots(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(String, String)>
                 },
             ],
         };
-        write_figure(&fig, out, "fig16_gameplay_traces")?;
-        written.push((
-            "fig16_gameplay_traces".to_string(),
+        emit(
+            &fig,
+            "fig16_gameplay_traces",
             format!("Gameplay (paper figure 16): every rod's position (top) and unwrapped angle (bottom) as rodtrack measures them (fused and filtered; one colour per rod: rod 0 blue, 1 vermilion, 2 green, 3 pink, 4 orange, 5 sky blue, 6 black, 7 grey), over the truth (thick light grey). Gaps: the rod was not reported ok (hands, out of view). {}", stride_note(r)),
-        ));
+        )?;
     }
     Ok(written)
 }
@@ -1175,23 +1197,17 @@ pub fn write_report(out: &Path, results: &[ScenarioResult], info: &ReportInfo) -
             r.median_us.0,
             r.median_us.1
         );
-        md.push_str(STAT_HEADER);
-        for (name, s) in MODES.iter().zip(&r.overall) {
-            let _ = writeln!(md, "| {name} {}", stat_row(s));
-        }
+        push_mode_table(&mut md, &r.overall);
         if let Some((top, stats)) = &r.at_top_speed {
             let _ = writeln!(md, "\nOnly the rows turning at {:.0} rad/s or faster (90 % of the top speed, {:.0} rad/s):\n", 0.9 * top, top);
-            md.push_str(STAT_HEADER);
-            for (name, s) in MODES.iter().zip(stats) {
-                let _ = writeln!(md, "| {name} {}", stat_row(s));
-            }
+            push_mode_table(&mut md, stats);
         }
         // Per rod, the headline modes only.
         let _ = writeln!(
             md,
             "\n<details><summary>per rod: paper mode (raw) and rodtrack (fused)</summary>\n"
         );
-        let _ = writeln!(md, "| rod | mode | rows ok | pos mean mm | pos std mm | pos max mm | ang mean rad | ang std rad | ang max rad | gross | coverage | false ok | wrong ok |\n|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+        md.push_str(&stat_header(&[("rod", "---:"), ("mode", "---")]));
         let b = best_mode(r);
         let rods: std::collections::BTreeSet<u32> =
             r.per_rod.iter().flat_map(|m| m.keys().copied()).collect();

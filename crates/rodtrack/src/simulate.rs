@@ -6,6 +6,7 @@ use rodtrack_sim::{
     SceneConfig, Simulation, SCENARIO_NAMES,
 };
 use std::io::Write;
+use std::num::NonZeroUsize;
 use std::path::PathBuf;
 
 /// Arguments of `rodtrack simulate`.
@@ -20,6 +21,12 @@ pub struct Args {
     /// Number of frames (default: the scenario's duration).
     #[arg(long)]
     pub frames: Option<usize>,
+    /// Write only every K-th frame (0, K, 2K, ...), as a camera at 1/K of the frame rate
+    /// would record the scenario (e.g. a sweep for `calibrate --auto`). Files keep the frame
+    /// ids of the full timeline (so their timestamps stay right); `truth.csv` holds the rows of
+    /// the frames written only.
+    #[arg(long, value_name = "K", default_value = "1")]
+    pub every: NonZeroUsize,
     /// Seed (scene variations, noise, clicks).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -78,6 +85,7 @@ pub fn calibrate_sim_camera(
 pub fn run(args: Args) -> Result<()> {
     let mut sim = build(&args.scenario, args.frames, args.seed, args.quality)?;
     let opts = RecordOptions {
+        every: args.every,
         calib_seed: args.seed,
         calib: CalibOptions {
             include_opencv_model: !args.no_opencv_model,
@@ -95,8 +103,12 @@ pub fn run(args: Args) -> Result<()> {
     })
     .with_context(|| format!("writing the recording to {}", args.out.display()))?;
     eprintln!();
+    let every = match args.every.get() {
+        1 => String::new(),
+        k => format!(" (one in {k})"),
+    };
     println!(
-        "wrote {} frames x {} cameras and {} truth rows to {}",
+        "wrote {} frames{every} x {} cameras and {} truth rows to {}",
         summary.frames,
         summary.cameras,
         summary.truth_rows,

@@ -49,11 +49,11 @@ fn markers_are_found_where_they_are() {
 
 // ---- the command line, end to end ----
 
-const SEED: u64 = 1;
-/// Sweep frames written: every `SWEEP_STEP`-th up to `SWEEP_END` (the sweep reaches both ends
-/// of every rod's travel by frame 2500).
-const SWEEP_STEP: usize = 40;
-const SWEEP_END: usize = 2600;
+/// The sweep as a camera at 5 frames/s would take it: every `SWEEP_STEP`-th frame of the
+/// simulator's `sweep` scenario up to `SWEEP_END` (the sweep reaches both ends of every rod's
+/// travel by frame 2500).
+const SWEEP_STEP: &str = "40";
+const SWEEP_END: &str = "2600";
 
 fn rodtrack(args: &[&str]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_rodtrack"))
@@ -85,69 +85,6 @@ fn fresh_dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// A sweep recording as a camera at 5 frames/s would take it (every `SWEEP_STEP`-th frame of
-/// the simulator's `sweep` scenario, named by frame id), both cameras.
-fn write_sweep(dir: &Path) {
-    let s = sim("sweep", None, SEED);
-    std::thread::scope(|scope| {
-        for cam in 0..2 {
-            let mut s = s.clone();
-            scope.spawn(move || {
-                let cdir = dir.join(format!("cam{cam}"));
-                std::fs::create_dir_all(&cdir).unwrap();
-                let mut buf = vec![0u8; s.frame_bytes(cam).unwrap()];
-                for f in (0..SWEEP_END).step_by(SWEEP_STEP) {
-                    let m = s.render(f, cam, &mut buf).unwrap();
-                    assert_eq!(m.stride, m.width);
-                    image::save_buffer_with_format(
-                        cdir.join(format!("{f:06}.png")),
-                        &buf[..m.width * m.height],
-                        m.width as u32,
-                        m.height as u32,
-                        image::ExtendedColorType::L8,
-                        image::ImageFormat::Png,
-                    )
-                    .unwrap();
-                }
-            });
-        }
-    });
-}
-
-/// The camera model of a simulated camera as OpenCV 4 writes it with `cv::FileStorage`.
-fn write_filestorage(inputs_json: &Path, out: &Path) {
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(inputs_json).unwrap()).unwrap();
-    let m = &v["opencv_model_optional"];
-    let k: Vec<String> = m["camera_matrix"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .flat_map(|r| {
-            r.as_array()
-                .unwrap()
-                .iter()
-                .map(|x| format!("{:e}", x.as_f64().unwrap()))
-        })
-        .collect();
-    let d: Vec<String> = m["dist_coeffs"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| format!("{:e}", x.as_f64().unwrap()))
-        .collect();
-    let text = format!(
-        "%YAML:1.0\n---\nimage_width: 1440\nimage_height: 1080\ncamera_matrix: !!opencv-matrix\n   \
-         rows: 3\n   cols: 3\n   dt: d\n   data: [ {}, {}, {}, {},\n       {}, {}, {}, {}, {} ]\n\
-         distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: {}\n   dt: d\n   \
-         data: [ {} ]\navg_reprojection_error: 2.1e-01\n",
-        k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8],
-        d.len(),
-        d.join(", ")
-    );
-    std::fs::write(out, text).unwrap();
 }
 
 /// The rows of one camera of a measurement or truth CSV.
@@ -192,7 +129,8 @@ fn score_per_rod(json: &Path) -> Vec<RodScore> {
         .collect()
 }
 
-/// `rodtrack simulate --scenario exp3` and the sweep -> `calibrate --auto` -> `track` -> `score`:
+/// All through the command line: `rodtrack simulate` of the sweep (`--every`, with the camera
+/// models as OpenCV files) and of experiment 3 -> `calibrate --auto` -> `track` -> `score`:
 /// every rod of both cameras within 0.1 mm (std) and 0.5 mm (max), no gross angle error; and
 /// the calibration inputs it saved give the same calibration through `calibrate --inputs`.
 #[test]
@@ -200,7 +138,23 @@ fn calibrate_auto_end_to_end() {
     let dir = fresh_dir("auto_calibration_e2e");
     let d = |p: &str| dir.join(p).display().to_string();
     let t0 = std::time::Instant::now();
-    write_sweep(&dir.join("sweep"));
+    let out = ok(&[
+        "simulate",
+        "--scenario",
+        "sweep",
+        "--out",
+        &d("sweep"),
+        "--frames",
+        SWEEP_END,
+        "--every",
+        SWEEP_STEP,
+        "--seed",
+        "1",
+    ]);
+    assert!(
+        out.contains("wrote 65 frames (one in 40) x 2 cameras"),
+        "{out}"
+    );
     ok(&[
         "simulate",
         "--scenario",
@@ -213,9 +167,6 @@ fn calibrate_auto_end_to_end() {
         "1",
     ]);
     eprintln!("recordings written in {:.1} s", t0.elapsed().as_secs_f64());
-    // The camera models as OpenCV files (the simulator's true intrinsics).
-    write_filestorage(&dir.join("rec/cam0.json"), &dir.join("cam0_intrinsics.yml"));
-    write_filestorage(&dir.join("rec/cam1.json"), &dir.join("cam1_intrinsics.yml"));
     let t1 = std::time::Instant::now();
     let out = ok(&[
         "calibrate",
@@ -229,9 +180,9 @@ fn calibrate_auto_end_to_end() {
         "--rods",
         "1-7",
         "--opencv-model",
-        &d("cam0_intrinsics.yml"),
+        &d("sweep/cam0_intrinsics.yml"),
         "--opencv-model",
-        &d("cam1_intrinsics.yml"),
+        &d("sweep/cam1_intrinsics.yml"),
         "--out",
         &d("auto.toml"),
     ]);
@@ -448,7 +399,7 @@ fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
             "--input",
             &d("sweep/cam1"),
             "--opencv-model",
-            &d("cam0_intrinsics.yml"),
+            &d("sweep/cam0_intrinsics.yml"),
             "--out",
             &d("x.toml"),
         ],
@@ -478,7 +429,10 @@ fn opencv_model_files_in_the_inputs(dir: &Path) {
     let inline = v["opencv_model_optional"].clone();
     let o = v.as_object_mut().unwrap();
     o.remove("opencv_model_optional");
-    o.insert("opencv_model_file".into(), "cam0_intrinsics.yml".into());
+    o.insert(
+        "opencv_model_file".into(),
+        "sweep/cam0_intrinsics.yml".into(),
+    );
     std::fs::write(dir.join("file_model.json"), v.to_string()).unwrap();
     ok(&[
         "calibrate",
@@ -525,7 +479,7 @@ fn opencv_model_files_in_the_inputs(dir: &Path) {
     o.remove("opencv_model_optional");
     o.insert("opencv_model_file".into(), "rational.yml".into());
     std::fs::write(dir.join("rational.json"), v.to_string()).unwrap();
-    let yml = std::fs::read_to_string(dir.join("cam0_intrinsics.yml")).unwrap();
+    let yml = std::fs::read_to_string(dir.join("sweep/cam0_intrinsics.yml")).unwrap();
     let yml = yml
         .replace("cols: 5", "cols: 8")
         .replace("0e0 ]", "0e0, 1.5e-2, 0., 0. ]");

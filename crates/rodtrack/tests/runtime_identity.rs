@@ -9,9 +9,11 @@ use std::process::{Command, Output};
 const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
 const FRAMES: usize = 40;
 
-fn run(args: &[&str]) -> Output {
+/// Runs rodtrack, which must succeed.
+fn run<S: AsRef<str>>(args: &[S]) -> Output {
+    let args: Vec<&str> = args.iter().map(AsRef::as_ref).collect();
     let out = Command::new(BIN)
-        .args(args)
+        .args(&args)
         .output()
         .expect("cannot run rodtrack");
     assert!(
@@ -30,6 +32,32 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
+/// `rodtrack simulate` of `frames` frames of experiment 3 (seed 1, as `sim://...&seed=1`) into a
+/// fresh folder `name`, and `rodtrack calibrate` of its first `cameras` cameras: (the folder,
+/// the calibration file).
+fn simulate_and_calibrate(name: &str, frames: usize, cameras: usize) -> (PathBuf, PathBuf) {
+    let t = dir(name);
+    run(&[
+        "simulate",
+        "--scenario",
+        "exp3",
+        "--out",
+        &t.display().to_string(),
+        "--frames",
+        &frames.to_string(),
+    ]);
+    let calib = t.join("c.toml");
+    let mut args = vec!["calibrate".to_string()];
+    for cam in 0..cameras {
+        args.push("--inputs".into());
+        args.push(t.join(format!("cam{cam}.json")).display().to_string());
+    }
+    args.push("--out".into());
+    args.push(calib.display().to_string());
+    run(&args);
+    (t, calib)
+}
+
 fn track(calib: &Path, inputs: &[String], out: &Path) -> Vec<u8> {
     let mut args = vec![
         "track".to_string(),
@@ -42,35 +70,14 @@ fn track(calib: &Path, inputs: &[String], out: &Path) -> Vec<u8> {
         args.push("--input".into());
         args.push(i.clone());
     }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     run(&args);
     std::fs::read(out).unwrap()
 }
 
 #[test]
 fn png_files_live_simulator_and_video_give_identical_measurements() {
-    let t = dir("runtime_identity");
-    let ts = t.display().to_string();
     // `simulate` seeds the simulation (and the clicks) with --seed, default 1; `sim://` too.
-    run(&[
-        "simulate",
-        "--scenario",
-        "exp3",
-        "--out",
-        &ts,
-        "--frames",
-        &FRAMES.to_string(),
-    ]);
-    let calib = t.join("c.toml");
-    run(&[
-        "calibrate",
-        "--inputs",
-        &t.join("cam0.json").display().to_string(),
-        "--inputs",
-        &t.join("cam1.json").display().to_string(),
-        "--out",
-        &calib.display().to_string(),
-    ]);
+    let (t, calib) = simulate_and_calibrate("runtime_identity", FRAMES, 2);
     let png = track(
         &calib,
         &[
@@ -122,25 +129,7 @@ fn png_files_live_simulator_and_video_give_identical_measurements() {
 #[test]
 fn sim_sources_with_different_seeds_differ() {
     // The identity above is not vacuous: another seed gives other frames, other rows.
-    let t = dir("runtime_identity_seed");
-    let ts = t.display().to_string();
-    run(&[
-        "simulate",
-        "--scenario",
-        "exp3",
-        "--out",
-        &ts,
-        "--frames",
-        "3",
-    ]);
-    let calib = t.join("c.toml");
-    run(&[
-        "calibrate",
-        "--inputs",
-        &t.join("cam0.json").display().to_string(),
-        "--out",
-        &calib.display().to_string(),
-    ]);
+    let (t, calib) = simulate_and_calibrate("runtime_identity_seed", 3, 1);
     let a = track(
         &calib,
         &["sim://exp3?camera=0&frames=3&seed=1".into()],

@@ -18,7 +18,7 @@
 //! Everything else in the file (image size, reprojection error, per-view extrinsics, ...) is
 //! parsed and ignored. XML FileStorage files are refused with a clear message.
 
-use super::inputs::OpencvModel;
+use super::inputs::{ImageSize, OpencvModel};
 use thiserror::Error;
 
 /// Why an OpenCV file (or an inline model) could not be read. The caller adds the file name.
@@ -120,6 +120,29 @@ fn normalise_key(k: &str) -> String {
 pub fn parse_opencv_model(text: &str) -> Result<OpencvModel, OpencvFileError> {
     let root = parse_file_storage(text)?;
     model_from_node(&root, false)
+}
+
+impl OpencvModel {
+    /// The model as the YAML file OpenCV's `cv::FileStorage` writes after `calibrateCamera`
+    /// (`image_width`, `image_height`, `camera_matrix`, `distortion_coefficients`). Numbers
+    /// carry the shortest digits that read back as the same double.
+    pub fn to_file_storage_yaml(&self, image_size: ImageSize) -> String {
+        let opencv_matrix = |rows: usize, cols: usize, data: &[f64]| {
+            let data: Vec<String> = data.iter().map(|v| format!("{v:e}")).collect();
+            format!(
+                "!!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
+                data.join(", ")
+            )
+        };
+        format!(
+            "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\ncamera_matrix: {}\
+             distortion_coefficients: {}",
+            image_size.width,
+            image_size.height,
+            opencv_matrix(3, 3, self.camera_matrix.as_flattened()),
+            opencv_matrix(1, self.dist_coeffs.len(), &self.dist_coeffs),
+        )
+    }
 }
 
 /// Parses the text of a FileStorage file (YAML or JSON) into its tree.
@@ -991,6 +1014,33 @@ mod tests {
         assert_eq!(
             root.get("calibration_time"),
             Some(&Node::Text("Mon 1 Jan # not a comment".into()))
+        );
+    }
+
+    #[test]
+    fn written_yaml_reads_back_bit_for_bit() {
+        let m = OpencvModel {
+            camera_matrix: [
+                [1150.123456789012, 0.0, 719.5],
+                [0.0, 1149.987654321098, 540.25],
+                [0.0, 0.0, 1.0],
+            ],
+            dist_coeffs: vec![-0.2512345678901234, 0.08, 1e-4, -2.5e-5, 0.0],
+        };
+        let size = ImageSize {
+            width: 1440,
+            height: 1080,
+        };
+        let text = m.to_file_storage_yaml(size);
+        assert!(
+            text.starts_with("%YAML:1.0\n---\nimage_width: 1440\n"),
+            "{text}"
+        );
+        assert_eq!(parse_opencv_model(&text).unwrap(), m);
+        let root = parse_file_storage(&text).unwrap();
+        assert_eq!(
+            root.get("image_height").and_then(Node::as_f64),
+            Some(1080.0)
         );
     }
 

@@ -2,91 +2,13 @@
 //! order, gaps counted, clean stops. (The default mode is tested in `tests/runtime.rs`.)
 #![allow(clippy::unwrap_used)]
 
+#[path = "../../tests/common/runtime_fakes.rs"]
+mod runtime_fakes;
+
 use super::*;
-use crate::source::SourceInfo;
 use crate::CsvSink;
-use rodtrack_core::{CameraId, PixelFormat, Status};
-use std::collections::HashSet;
-
-/// 8x6 mono8 frames filled with `frame_id % 256`; bad frames and a per-frame delay on demand.
-struct Fake {
-    ids: Box<dyn Iterator<Item = u64> + Send>,
-    bad: HashSet<u64>,
-    delay: Duration,
-    /// Sleep this long before delivering frame `.0`.
-    stall: Option<(u64, Duration)>,
-}
-
-impl Fake {
-    fn new(ids: impl Iterator<Item = u64> + Send + 'static) -> Self {
-        Fake {
-            ids: Box::new(ids),
-            bad: HashSet::new(),
-            delay: Duration::ZERO,
-            stall: None,
-        }
-    }
-}
-
-impl FrameSource for Fake {
-    fn info(&self) -> SourceInfo {
-        SourceInfo {
-            name: "fake".into(),
-            width: 8,
-            height: 6,
-            format: PixelFormat::Mono8,
-            fps: Some(200.0),
-            frame_count: None,
-            live: true,
-        }
-    }
-    fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, IoError> {
-        let Some(id) = self.ids.next() else {
-            return Ok(None);
-        };
-        if let Some((at, d)) = self.stall {
-            if at == id {
-                std::thread::sleep(d);
-            }
-        }
-        std::thread::sleep(self.delay);
-        buf.meta.frame_id = id;
-        buf.meta.timestamp_ns = Timestamp(id * 5_000_000);
-        if self.bad.contains(&id) {
-            return Err(IoError::Decode {
-                path: format!("fake{id}.png").into(),
-                reason: "simulated".into(),
-            });
-        }
-        buf.reshape_packed(8, 6, PixelFormat::Mono8);
-        buf.data.fill((id % 256) as u8);
-        Ok(Some(()))
-    }
-}
-
-/// Rods 0 and 1 with the pixel value as position; one `bad_frame` row for a bad frame.
-fn tracker() -> ProcessFn {
-    Box::new(move |meta, view, out| {
-        let ts = meta.timestamp_ns.as_secs_f64();
-        let cam = CameraId::Camera(meta.camera);
-        match view {
-            Ok(v) => {
-                for rod in 0..2 {
-                    let mut m = Measurement::empty(meta.frame_id, ts, cam, rod, Status::Ok);
-                    m.position_mm = f64::from(v.luma_node(3, 3)) + f64::from(rod);
-                    out.push(m);
-                }
-            }
-            Err(_) => out.push(Measurement::empty(
-                meta.frame_id,
-                ts,
-                cam,
-                0,
-                Status::BadFrame,
-            )),
-        }
-    })
-}
+use rodtrack_core::{CameraId, Status};
+use runtime_fakes::{tracker, Fake, Writes};
 
 /// A camera filter that writes positions times 10 (so that written and measured rows differ).
 fn times_ten() -> CameraFilterFn {
@@ -114,28 +36,17 @@ fn fusion() -> FusionFn {
     })
 }
 
-/// Keeps each `write` call's rows.
-#[derive(Default)]
-struct Writes(Vec<Vec<Measurement>>);
-
-impl MeasurementSink for Writes {
-    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        self.0.push(rows.to_vec());
-        Ok(())
-    }
-    fn flush(&mut self) -> Result<(), IoError> {
-        Ok(())
-    }
-}
-
 /// Two cameras of 60 frames (camera 1 misses frame 7, camera 0's frame 11 is bad), camera 0
 /// with the filter, the fusion; run by the calling thread or directly.
 fn two_cameras(config: PipelineConfig, direct: bool) -> (PipelineReport, Vec<Vec<Measurement>>) {
     let mut p = Pipeline::new(config);
     let mut a = Fake::new(0..60);
     a.bad.insert(11);
-    p.add_camera(Box::new(a), tracker());
-    p.add_camera(Box::new(Fake::new((0..60).filter(|i| *i != 7))), tracker());
+    p.add_camera(Box::new(a), tracker(Duration::ZERO));
+    p.add_camera(
+        Box::new(Fake::new((0..60).filter(|i| *i != 7))),
+        tracker(Duration::ZERO),
+    );
     p.set_camera_filter(0, times_ten()).unwrap();
     p.set_fusion(fusion());
     if direct {
@@ -265,7 +176,7 @@ fn inline_live_counts_what_the_source_skipped_and_drops_nothing() {
     };
     let mut p = Pipeline::new(config);
     let ids = (0..50).filter(|i| !(10..14).contains(i) && *i != 30);
-    p.add_camera(Box::new(Fake::new(ids)), tracker());
+    p.add_camera(Box::new(Fake::new(ids)), tracker(Duration::ZERO));
     let (r, sink) = p.run_direct(Writes::default()).unwrap();
     let c = &r.cameras[0];
     assert_eq!(
@@ -296,8 +207,8 @@ fn a_stalled_camera_does_not_hold_back_the_others_rows() {
     let mut b = Fake::new(0..30);
     b.delay = Duration::from_millis(2);
     b.stall = Some((10, Duration::from_millis(300)));
-    p.add_camera(Box::new(a), tracker());
-    p.add_camera(Box::new(b), tracker());
+    p.add_camera(Box::new(a), tracker(Duration::ZERO));
+    p.add_camera(Box::new(b), tracker(Duration::ZERO));
     p.set_fusion(fusion());
     let (r, sink) = p.run_direct(Writes::default()).unwrap();
     let rows: Vec<&Measurement> = sink.0.iter().flatten().collect();
@@ -330,7 +241,7 @@ fn run_direct_stops_cleanly_and_returns_the_flushed_sink() {
         for _ in 0..2 {
             let mut src = Fake::new(0..);
             src.delay = Duration::from_millis(1);
-            p.add_camera(Box::new(src), tracker());
+            p.add_camera(Box::new(src), tracker(Duration::ZERO));
         }
         let stop = p.stop_flag();
         let live = p.counters();
@@ -361,37 +272,9 @@ fn run_direct_stops_cleanly_and_returns_the_flushed_sink() {
 }
 
 #[test]
-fn a_panicking_tracker_inline_ends_its_camera_only() {
-    let config = PipelineConfig {
-        handoff: Handoff::Inline,
-        ..Default::default()
-    };
-    let mut p = Pipeline::new(config);
-    p.add_camera(Box::new(Fake::new(0..50)), tracker());
-    let mut inner = tracker();
-    p.add_camera(
-        Box::new(Fake::new(0..50)),
-        Box::new(move |meta, view, out| {
-            if meta.frame_id == 20 {
-                panic!("tracker bug");
-            }
-            inner(meta, view, out)
-        }),
-    );
-    let (r, sink) = p.run_direct(Writes::default()).unwrap();
-    assert_eq!(r.cameras[0].frames_processed, 50);
-    assert!(
-        r.cameras[1].errors.iter().any(|e| e.contains("panicked")),
-        "{r:?}"
-    );
-    assert_eq!(sink.0.len(), 50);
-    assert_eq!(r.rows_written, 100 + 40);
-}
-
-#[test]
 fn a_filter_for_a_camera_not_added_is_an_error() {
     let mut p = Pipeline::new(PipelineConfig::default());
-    p.add_camera(Box::new(Fake::new(0..1)), tracker());
+    p.add_camera(Box::new(Fake::new(0..1)), tracker(Duration::ZERO));
     assert!(p.set_camera_filter(1, times_ten()).is_err());
     assert!(p.set_camera_filter(0, times_ten()).is_ok());
 }
