@@ -230,6 +230,14 @@ impl LineFit {
         }
     }
 
+    /// The line's value at `s_mm` (the mean before 5 samples); `None`-safe: 0 with no sample.
+    fn value(&self, s_mm: f64) -> f64 {
+        match self.coeffs() {
+            Some((mv, b, ms)) => mv + b * (s_mm - ms),
+            None => self.v / self.n.max(1e-12),
+        }
+    }
+
     /// [`LineFit::coeffs`] of the samples and `weight` more samples `(s_mm, v)`; `None`
     /// before the first sample.
     fn coeffs_with(&self, s_mm: f64, v: f64, weight: f64) -> Option<(f64, f64, f64)> {
@@ -321,7 +329,9 @@ impl ScaleFit {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CentreFit {
     line: LineFit,
-    ratio: f64,
+    /// The half width over the calibrated radius, also as a line in `s` (the calibrated
+    /// radius may run off the apparent one along the travel).
+    ratio: LineFit,
     /// Sum of the accepted samples' squared half-width deviations, px^2, and their count
     /// (forgotten as the line's samples are).
     width_dev2: f64,
@@ -337,14 +347,7 @@ impl CentreFit {
         if self.line.n < 1.0 {
             return (0.0, 1.0);
         }
-        let ratio = self.ratio / self.line.n;
-        if self.line.n < 5.0 {
-            return (self.line.v / self.line.n, ratio);
-        }
-        match self.line.coeffs() {
-            Some((me, b, ms)) => (me + b * (s_mm - ms), ratio),
-            None => (self.line.v / self.line.n, ratio),
-        }
+        (self.line.value(s_mm), self.ratio.value(s_mm))
     }
 
     /// Samples before the half width's scatter gates new ones.
@@ -398,7 +401,7 @@ impl CentreFit {
         }
         let inv = 1.0 / n as f64;
         let k = self.line.add(sum_s * inv, sum_c * inv);
-        self.ratio = self.ratio * k + sum_r * inv;
+        self.ratio.add(sum_s * inv, sum_r * inv);
         self.width_dev2 = self.width_dev2 * k + dev2;
         self.width_n = self.width_n * k + n_dev;
         n
