@@ -95,7 +95,10 @@ const GRAY_SAMPLES: [(f64, f64); 5] = [
 /// Most rings whose silhouettes one frame adds to the learnt centre line.
 const MAX_RINGS: usize = 32;
 /// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
-/// bits' threshold, mm (its middle is read, half its length along the rod).
+/// bits' threshold, mm.
+/// Where the quiet zone is read, around its middle: (along the rod in quiet-zone lengths,
+/// across it in radii). Plain white: two samples are enough.
+const QUIET_SAMPLES: [(f64, f64); 2] = [(0.0, -0.15), (0.0, 0.15)];
 const QUIET_REFERENCE_MIN_MM: f64 = 2.0;
 /// How far the marker may move from where the print's shading was measured before it is
 /// measured again, mm.
@@ -339,6 +342,8 @@ pub struct CentreFit {
     /// The span of the axis covered by accepted samples, mm.
     s_lo: f64,
     s_hi: f64,
+    /// Frames in a row whose silhouettes were all refused.
+    refused_frames: u32,
 }
 
 impl CentreFit {
@@ -397,8 +402,18 @@ impl CentreFit {
             sum_r += r.ratio;
         }
         if n == 0 {
+            // Where every silhouette is refused (a hand, a bright background), the place
+            // counts as covered after a while: looking again every frame is of no use there.
+            self.refused_frames += 1;
+            if self.refused_frames >= Self::REFUSED_FRAMES_COVER && self.line.n >= 1.0 {
+                for r in rings {
+                    self.s_lo = self.s_lo.min(r.s_mm);
+                    self.s_hi = self.s_hi.max(r.s_mm);
+                }
+            }
             return 0;
         }
+        self.refused_frames = 0;
         let inv = 1.0 / n as f64;
         let k = self.line.add(sum_s * inv, sum_c * inv);
         self.ratio.add(sum_s * inv, sum_r * inv);
@@ -433,6 +448,9 @@ impl CentreFit {
         self.line.n
     }
 
+    /// Frames in a row with every silhouette refused, after which their place counts as
+    /// covered.
+    const REFUSED_FRAMES_COVER: u32 = 8;
     /// How far beyond the covered span a place still counts as covered, mm.
     const COVER_MARGIN_MM: f64 = 5.0;
 
@@ -1252,17 +1270,17 @@ impl EnhancedState {
             (centre(&self.white), centre(&self.black))
         };
         let span = (white - black).max(0.2 * (inter.loc.white - inter.loc.black));
-        let read = |u: f64, along_mm: f64| -> Option<f64> {
+        let read = |u: f64, along_mm: f64, at: &[(f64, f64)]| -> Option<f64> {
             let lp = self.knots.at(position + u);
             if !frame.contains(lp.x as f32, lp.y as f32, 2.0 + 0.5 * lp.radius_px as f32) {
                 return None;
             }
             let mut acc = 0.0f32;
-            for (da, dc) in GRAY_SAMPLES {
+            for &(da, dc) in at {
                 let (x, y) = lp.offset(da * along_mm * lp.px_per_mm, dc * lp.radius_px);
                 acc += frame.luma_bilinear(x as f32, y as f32);
             }
-            Some((acc as f64 / GRAY_SAMPLES.len() as f64 - black) / span)
+            Some((acc as f64 / at.len() as f64 - black) / span)
         };
         // The light's offset on the barcode's scale: at bit space 0 and at the quiet zone.
         let u0 = m.bit_space_centre_mm(0);
@@ -1271,7 +1289,7 @@ impl EnhancedState {
         let quiet = m.length_mm() - gray_end;
         let uq = gray_end + 0.5 * quiet;
         let offq = if quiet >= QUIET_REFERENCE_MIN_MM {
-            read(uq, 0.25 * quiet).map(|w| (w - 1.0).clamp(-1.0, 1.0))
+            read(uq, quiet, &QUIET_SAMPLES).map(|w| (w - 1.0).clamp(-1.0, 1.0))
         } else {
             None
         };
@@ -1284,7 +1302,7 @@ impl EnhancedState {
                 None => off0,
             };
             // Outside the frame: read as the threshold, an ambiguous bit.
-            let v = read(c, m.bit_space_mm()).map_or(0.5, |v| v - off);
+            let v = read(c, m.bit_space_mm(), &GRAY_SAMPLES).map_or(0.5, |v| v - off);
             *s = v as f32;
             if kb >= 2 {
                 min_high_margin = min_high_margin.min((v - 0.5).abs() / 0.5);
