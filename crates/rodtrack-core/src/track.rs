@@ -92,6 +92,14 @@ const GRAY_SAMPLES: [(f64, f64); 5] = [
     (0.0, -0.15),
     (0.0, 0.15),
 ];
+/// Most rings whose silhouettes one frame adds to the learnt centre line.
+const MAX_RINGS: usize = 32;
+/// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
+/// bits' threshold, mm.
+/// Where the quiet zone is read, around its middle: (along the rod in quiet-zone lengths,
+/// across it in radii). Plain white: two samples are enough.
+const QUIET_SAMPLES: [(f64, f64); 2] = [(0.0, -0.15), (0.0, 0.15)];
+const QUIET_REFERENCE_MIN_MM: f64 = 2.0;
 /// How far the marker may move from where the print's shading was measured before it is
 /// measured again, mm.
 const SHADING_REUSE_MM: f64 = 5.0;
@@ -225,6 +233,30 @@ impl LineFit {
         }
     }
 
+    /// The line's value at `s_mm` (the mean before 5 samples); `None`-safe: 0 with no sample.
+    fn value(&self, s_mm: f64) -> f64 {
+        match self.coeffs() {
+            Some((mv, b, ms)) => mv + b * (s_mm - ms),
+            None => self.v / self.n.max(1e-12),
+        }
+    }
+
+    /// [`LineFit::coeffs`] of the samples and `weight` more samples `(s_mm, v)`; `None`
+    /// before the first sample.
+    fn coeffs_with(&self, s_mm: f64, v: f64, weight: f64) -> Option<(f64, f64, f64)> {
+        if self.n < 1.0 {
+            return None;
+        }
+        LineFit {
+            n: self.n + weight,
+            s: self.s + weight * s_mm,
+            ss: self.ss + weight * s_mm * s_mm,
+            v: self.v + weight * v,
+            sv: self.sv + weight * s_mm * v,
+        }
+        .coeffs()
+    }
+
     /// Adds a sample; returns the factor old sums were scaled by (for companions).
     fn add(&mut self, s_mm: f64, v: f64) -> f64 {
         let mut k = 1.0;
@@ -264,9 +296,16 @@ impl ScaleFit {
         true
     }
 
-    /// Calibrated-line coordinate `s` to true mm, keeping `s_ref` fixed.
+    /// Calibration measured the scale at the reference (the barcode's edges there set the mm
+    /// scale): the scale error there is 0, worth this many frames' measurements. Without it a
+    /// rod that never moves would have its local scale error applied over the whole way from
+    /// the reference (twice the correction where the scale changes steadily along the rod).
+    const REFERENCE_WEIGHT: f64 = 50.0;
+
+    /// Calibrated-line coordinate `s` to true mm, keeping `s_ref` (the barcode's middle at
+    /// the reference pose, where calibration measured the scale) fixed.
     pub fn to_true(&self, s_mm: f64, s_ref_mm: f64) -> f64 {
-        match self.coeffs() {
+        match self.line.coeffs_with(s_ref_mm, 0.0, Self::REFERENCE_WEIGHT) {
             None => s_mm,
             Some((b0, b1, ms)) => {
                 // integral of b from s_ref to s
@@ -282,10 +321,29 @@ impl ScaleFit {
 /// the axis coordinate in mm), and the mean radius ratio, accumulated over frames. The rod's
 /// axis does not move in the image, so every frame's silhouette adds to the same line: its
 /// noise averages out while the marker travels, and no single frame's noise reaches the phase.
+///
+/// A silhouette is only as good as the background beside the rod: something bright next to
+/// one side (a figure, the table's wall, a reflection) moves that edge alone, and a gate on
+/// the centre lets such samples in and drag the line away little by little. Such a sample
+/// shows as a half width off the learnt radius (by half the edge's move), whereas a place
+/// where the line itself runs elsewhere (not learnt yet) moves both edges alike and keeps the
+/// half width. So the half width must agree with the learnt radius within a few times its own
+/// scatter (learnt from the accepted samples).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CentreFit {
     line: LineFit,
-    ratio: f64,
+    /// The half width over the calibrated radius, also as a line in `s` (the calibrated
+    /// radius may run off the apparent one along the travel).
+    ratio: LineFit,
+    /// Sum of the accepted samples' squared half-width deviations, px^2, and their count
+    /// (forgotten as the line's samples are).
+    width_dev2: f64,
+    width_n: f64,
+    /// The span of the axis covered by accepted samples, mm.
+    s_lo: f64,
+    s_hi: f64,
+    /// Frames in a row whose silhouettes were all refused.
+    refused_frames: u32,
 }
 
 impl CentreFit {
@@ -294,34 +352,113 @@ impl CentreFit {
         if self.line.n < 1.0 {
             return (0.0, 1.0);
         }
-        let ratio = self.ratio / self.line.n;
-        if self.line.n < 5.0 {
-            return (self.line.v / self.line.n, ratio);
-        }
-        match self.line.coeffs() {
-            Some((me, b, ms)) => (me + b * (s_mm - ms), ratio),
-            None => (self.line.v / self.line.n, ratio),
-        }
+        (self.line.value(s_mm), self.ratio.value(s_mm))
     }
 
-    /// Adds one silhouette sample; refuses one far from the current fit (hands, figures).
-    pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64) -> bool {
-        if self.line.n >= 5.0 {
-            let (e, r) = self.at(s_mm);
-            if (offset_px - e).abs() > 0.75 || (ratio - r).abs() > 0.1 {
-                return false;
+    /// Samples before the half width's scatter gates new ones.
+    const WIDTH_GATE_AFTER: f64 = 20.0;
+    /// The half-width gate, in its scatters, and its floor, px.
+    const WIDTH_GATE_SIGMAS: f64 = 4.0;
+    const WIDTH_GATE_MIN_PX: f64 = 0.15;
+
+    /// Adds one silhouette sample (centre offset, half width over the calibrated radius
+    /// `radius_px`); refuses one far from the current fit (hands, figures, a bright
+    /// background on one side).
+    pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64, radius_px: f64) -> bool {
+        self.add_frame(&[Silhouette {
+            s_mm,
+            offset_px,
+            ratio,
+            radius_px,
+        }]) > 0
+    }
+
+    /// Adds one frame's silhouettes (one per ring) as one sample: their mean place, offset
+    /// and ratio over those the gates let in. The line's slope then comes from where the
+    /// marker was over frames, never from the spread of the rings along one marker (each
+    /// ring's silhouette has a small bias of its own, from its neighbours in the print, that
+    /// a slope over the marker's 30 mm would carry far along the travel). Returns how many
+    /// were let in.
+    pub fn add_frame(&mut self, rings: &[Silhouette]) -> usize {
+        let (mut n, mut sum_s, mut sum_c, mut sum_r) = (0usize, 0.0, 0.0, 0.0);
+        let (mut dev2, mut n_dev) = (0.0, 0.0);
+        for r in rings {
+            let Ok(dev) = self.gate(r) else {
+                continue;
+            };
+            if let Some(d) = dev {
+                dev2 += d * d;
+                n_dev += 1.0;
             }
-        } else if offset_px.abs() > 3.0 || (ratio - 1.0).abs() > 0.3 {
-            return false;
+            if self.line.n < 1.0 && n == 0 {
+                (self.s_lo, self.s_hi) = (r.s_mm, r.s_mm);
+            } else {
+                self.s_lo = self.s_lo.min(r.s_mm);
+                self.s_hi = self.s_hi.max(r.s_mm);
+            }
+            n += 1;
+            sum_s += r.s_mm;
+            sum_c += r.offset_px;
+            sum_r += r.ratio;
         }
-        let k = self.line.add(s_mm, offset_px);
-        self.ratio = self.ratio * k + ratio;
-        true
+        if n == 0 {
+            // Where every silhouette is refused (a hand, a bright background), the place
+            // counts as covered after a while: looking again every frame is of no use there.
+            self.refused_frames += 1;
+            if self.refused_frames >= Self::REFUSED_FRAMES_COVER && self.line.n >= 1.0 {
+                for r in rings {
+                    self.s_lo = self.s_lo.min(r.s_mm);
+                    self.s_hi = self.s_hi.max(r.s_mm);
+                }
+            }
+            return 0;
+        }
+        self.refused_frames = 0;
+        let inv = 1.0 / n as f64;
+        let k = self.line.add(sum_s * inv, sum_c * inv);
+        self.ratio.add(sum_s * inv, sum_r * inv);
+        self.width_dev2 = self.width_dev2 * k + dev2;
+        self.width_n = self.width_n * k + n_dev;
+        n
+    }
+
+    /// The gates: `Err` refuses the silhouette; `Ok` gives its half width's deviation from
+    /// the learnt radius, px, once there is a fit to compare with.
+    fn gate(&self, r: &Silhouette) -> Result<Option<f64>, ()> {
+        if self.line.n < 5.0 {
+            let plausible = r.offset_px.abs() <= 3.0 && (r.ratio - 1.0).abs() <= 0.3;
+            return if plausible { Ok(None) } else { Err(()) };
+        }
+        let (e, ratio) = self.at(r.s_mm);
+        if (r.offset_px - e).abs() > 0.75 || (r.ratio - ratio).abs() > 0.1 {
+            return Err(());
+        }
+        let d = (r.ratio - ratio) * r.radius_px;
+        if self.width_n >= Self::WIDTH_GATE_AFTER {
+            let sigma = (self.width_dev2 / self.width_n).sqrt();
+            if d.abs() > (Self::WIDTH_GATE_SIGMAS * sigma).max(Self::WIDTH_GATE_MIN_PX) {
+                return Err(());
+            }
+        }
+        Ok(Some(d))
     }
 
     /// Number of samples in the fit.
     pub fn samples(&self) -> f64 {
         self.line.n
+    }
+
+    /// Frames in a row with every silhouette refused, after which their place counts as
+    /// covered.
+    const REFUSED_FRAMES_COVER: u32 = 8;
+    /// How far beyond the covered span a place still counts as covered, mm.
+    const COVER_MARGIN_MM: f64 = 5.0;
+
+    /// True when samples were taken at or near `s_mm` (the line is not extrapolated there).
+    pub fn covers(&self, s_mm: f64) -> bool {
+        self.line.n >= 1.0
+            && s_mm >= self.s_lo - Self::COVER_MARGIN_MM
+            && s_mm <= self.s_hi + Self::COVER_MARGIN_MM
     }
 }
 
@@ -533,6 +670,15 @@ impl RodTracker {
         }
     }
 
+    /// What the enhanced mode has learnt (diagnostics): the centre line's offset across the
+    /// calibrated line at `s_mm` (px) and the radius ratio, and the phase's radius correction
+    /// `eps` in use.
+    pub fn learnt(&self, s_mm: f64) -> (f64, f64, f64) {
+        let st = &self.enhanced;
+        let (offset, ratio) = st.centre.at(s_mm);
+        (offset, ratio, (st.eps_best as f64 - 8.0) * 0.01)
+    }
+
     /// The rod id.
     pub fn rod(&self) -> u32 {
         self.calib.rod
@@ -673,10 +819,13 @@ impl RodTracker {
         });
         st.frames_seen = st.frames_seen.wrapping_add(1);
         // Once the line is learnt, every 4th frame, then every 16th, is enough to follow slow
-        // changes.
+        // changes; but where the marker has not been yet, the line is extrapolated and every
+        // frame adds to it until it is learnt there too.
+        let u_mid = st.ring_u.iter().sum::<f64>() / st.ring_u.len().max(1) as f64;
         let every = match st.centre.samples() {
-            n if n < 300.0 => 1,
-            n if n < 3000.0 => 4,
+            _ if !st.centre.covers(p + u_mid) => 1,
+            n if n < 60.0 => 1,
+            n if n < 600.0 => 4,
             _ => 16,
         };
         if st.frames_seen % every == 0 {
@@ -684,10 +833,18 @@ impl RodTracker {
         }
         let inter = Intermediate { loc, edges };
         st.inter = Some(inter);
-        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter);
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
-        let (phi, amp_ratio) = st.phase(m, calib.reference_position_mm, frame, &inter);
-        st.judge(m, calib, &inter, alpha, min_high_margin, phi, amp_ratio)
+        let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
+        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter, ph.mean);
+        st.judge(
+            m,
+            calib,
+            &inter,
+            alpha,
+            min_high_margin,
+            ph.phi,
+            ph.amp_ratio,
+        )
     }
 
     /// Touches the frame's cache lines where this rod's marker is expected (enhanced mode, when
@@ -743,7 +900,7 @@ impl RodTracker {
             }
             Stage::Centre => st.learn_centre(frame, inter.edges.position_mm),
             Stage::Gray => {
-                std::hint::black_box(st.gray_code(m, frame, &inter));
+                std::hint::black_box(st.gray_code(m, frame, &inter, 0.5));
             }
             Stage::Shading => st.shading(m, calib.reference_position_mm, frame, &inter, true),
             Stage::Phase => {
@@ -1050,12 +1207,21 @@ impl EnhancedState {
     /// The rod's centre and apparent radius where the marker is: this frame's silhouettes of
     /// the marker's white rings feed the centre line learnt over all frames.
     fn learn_centre(&mut self, frame: &FrameView, position_mm: f64) {
-        for &u in &self.ring_u {
+        let mut rings = [Silhouette::default(); MAX_RINGS];
+        let mut n = 0;
+        for &u in self.ring_u.iter().take(MAX_RINGS) {
             let lp = self.knots.at(position_mm + u);
             if let Some((c, hw)) = ring_silhouette(frame, &lp) {
-                self.centre.add(position_mm + u, c, hw / lp.radius_px);
+                rings[n] = Silhouette {
+                    s_mm: position_mm + u,
+                    offset_px: c,
+                    ratio: hw / lp.radius_px,
+                    radius_px: lp.radius_px,
+                };
+                n += 1;
             }
         }
+        self.centre.add_frame(&rings[..n]);
     }
 
     /// The learnt centre's offset at marker `u` relative to the reference pose (calibration
@@ -1072,29 +1238,77 @@ impl EnhancedState {
 
     /// Step 4: the Gray bits at the centre of each bit space: (decoded step, smallest margin
     /// of the high bits, in half contrasts).
-    fn gray_code(&self, m: &Marker, frame: &FrameView, inter: &Intermediate) -> (u32, f64) {
+    ///
+    /// Each bit is read on the barcode's scale (its black 0, its white 1, with the print's
+    /// shading across the rod) against a threshold that follows the light along the Gray
+    /// code: the print may be lit unlike the barcode (a lamp's glare, a light gradient) by an
+    /// offset that bit space 0's stripes measure (their mean is 0.5 when lit as the barcode:
+    /// half black, half white) and the white quiet zone after the last bit space measures
+    /// (1 when lit as the barcode); between them it is interpolated. `stripes_mean` is bit
+    /// space 0's mean from the phase step.
+    fn gray_code(
+        &self,
+        m: &Marker,
+        frame: &FrameView,
+        inter: &Intermediate,
+        stripes_mean: f64,
+    ) -> (u32, f64) {
         let position = inter.edges.position_mm;
-        let (white, black) = (inter.loc.white, inter.loc.black);
-        let contrast = white - black;
         let bits = m.bits() as usize;
+        // The shading at the facing line (the middle of the phase samples).
+        let mid = self.white.len() / 2;
+        let centre = |v: &[f64]| {
+            if v.len() % 2 == 0 {
+                0.5 * (v[mid - 1] + v[mid])
+            } else {
+                v[mid]
+            }
+        };
+        let (white, black) = if self.white.is_empty() {
+            (inter.loc.white, inter.loc.black)
+        } else {
+            (centre(&self.white), centre(&self.black))
+        };
+        let span = (white - black).max(0.2 * (inter.loc.white - inter.loc.black));
+        let read = |u: f64, along_mm: f64, at: &[(f64, f64)]| -> Option<f64> {
+            let lp = self.knots.at(position + u);
+            if !frame.contains(lp.x as f32, lp.y as f32, 2.0 + 0.5 * lp.radius_px as f32) {
+                return None;
+            }
+            let mut acc = 0.0f32;
+            for &(da, dc) in at {
+                let (x, y) = lp.offset(da * along_mm * lp.px_per_mm, dc * lp.radius_px);
+                acc += frame.luma_bilinear(x as f32, y as f32);
+            }
+            Some((acc as f64 / at.len() as f64 - black) / span)
+        };
+        // The light's offset on the barcode's scale: at bit space 0 and at the quiet zone.
+        let u0 = m.bit_space_centre_mm(0);
+        let off0 = (stripes_mean - 0.5).clamp(-1.0, 1.0);
+        let gray_end = m.gray_start_mm() + bits as f64 * m.bit_space_mm();
+        let quiet = m.length_mm() - gray_end;
+        let uq = gray_end + 0.5 * quiet;
+        let offq = if quiet >= QUIET_REFERENCE_MIN_MM {
+            read(uq, quiet, &QUIET_SAMPLES).map(|w| (w - 1.0).clamp(-1.0, 1.0))
+        } else {
+            None
+        };
         let mut samples = [0.0f32; 8];
-        let threshold = (0.5 * (white + black)) as f32;
         let mut min_high_margin = f64::MAX;
         for (kb, s) in samples.iter_mut().enumerate().take(bits) {
             let c = m.bit_space_centre_mm(kb as u32);
-            let lp = self.knots.at(position + c);
-            let mut acc = 0.0f32;
-            for (da, dc) in GRAY_SAMPLES {
-                let (x, y) = lp.offset(da * m.bit_space_mm() * lp.px_per_mm, dc * lp.radius_px);
-                acc += frame.luma_bilinear(x as f32, y as f32);
-            }
-            *s = acc / GRAY_SAMPLES.len() as f32;
+            let off = match offq {
+                Some(oq) => off0 + (oq - off0) * (c - u0) / (uq - u0),
+                None => off0,
+            };
+            // Outside the frame: read as the threshold, an ambiguous bit.
+            let v = read(c, m.bit_space_mm(), &GRAY_SAMPLES).map_or(0.5, |v| v - off);
+            *s = v as f32;
             if kb >= 2 {
-                let margin = ((*s - threshold).abs() as f64) / (0.5 * contrast);
-                min_high_margin = min_high_margin.min(margin);
+                min_high_margin = min_high_margin.min((v - 0.5).abs() / 0.5);
             }
         }
-        let (_, alpha) = decode_bits(&samples[..bits], threshold);
+        let (_, alpha) = decode_bits(&samples[..bits], 0.5);
         (alpha, min_high_margin)
     }
 
@@ -1159,15 +1373,14 @@ impl EnhancedState {
         self.shading_age = 0;
     }
 
-    /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection:
-    /// (phase in rad, amplitude over a full-contrast square wave's).
+    /// Step 5: the phase across the rod over bit space 0, with the cylinder's projection.
     fn phase(
         &mut self,
         m: &Marker,
         reference_position_mm: f64,
         frame: &FrameView,
         inter: &Intermediate,
-    ) -> (f64, f64) {
+    ) -> PhaseFit {
         let st = self;
         let position = inter.edges.position_mm;
         let ca = st.centre_at(m, reference_position_mm, position);
@@ -1216,13 +1429,13 @@ impl EnhancedState {
                 std::array::from_fn(|i| gi[i][0] * r[0] + gi[i][1] * r[1] + gi[i][2] * r[2]);
             // Energy explained by the fundamental beyond the constant.
             let energy = x[0] * r[0] + x[1] * r[1] + x[2] * r[2] - r[0] * r[0] / sw.max(1e-12);
-            (x[1], x[2], energy)
+            (x[0], x[1], x[2], energy)
         };
         // Learn: score the whole grid (while learning, then every 8th frame), accumulate the
         // normalised energies (slowly forgetting), keep the best eps.
         if st.frames_seen < EPS_LEARN_FRAMES || st.frames_seen % EPS_RESCORE_EVERY == 0 {
             for ((z, table), gi) in st.eps_z.iter_mut().zip(&st.eps_tables).zip(&st.eps_ginv) {
-                let (_, _, e) = fit(table, gi, &st.phase_v);
+                let (_, _, _, e) = fit(table, gi, &st.phase_v);
                 *z = (e.max(0.0).sqrt(), 0.0);
             }
             let e_max = st
@@ -1244,7 +1457,7 @@ impl EnhancedState {
                     .unwrap_or(n_eps / 2);
             }
         }
-        let (a, b, _) = fit(
+        let (mean, a, b, _) = fit(
             &st.eps_tables[st.eps_best],
             &st.eps_ginv[st.eps_best],
             &st.phase_v,
@@ -1252,9 +1465,12 @@ impl EnhancedState {
         let phi = b.atan2(a);
         // Per row (phase_v sums the rows).
         let amplitude = (a * a + b * b).sqrt() / rows.len() as f64;
-        // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
-        let amp_ratio = amplitude / (2.0 / std::f64::consts::PI);
-        (phi, amp_ratio)
+        PhaseFit {
+            phi,
+            // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
+            amp_ratio: amplitude / (2.0 / std::f64::consts::PI),
+            mean: mean / rows.len() as f64,
+        }
     }
 
     /// Step 6: fuses the phase with the Gray code, checks their consistency, and gives the
@@ -1329,6 +1545,31 @@ impl EnhancedState {
             edge_std_mm: edge_std,
         }
     }
+}
+
+/// The phase step's result.
+#[derive(Debug, Clone, Copy)]
+struct PhaseFit {
+    /// Phase of the stripes' fundamental, rad.
+    phi: f64,
+    /// Its amplitude over a full-contrast square wave's.
+    amp_ratio: f64,
+    /// The stripes' mean level over bit space 0, on the barcode's scale (its black 0, its
+    /// white 1 at each point across the rod): 0.5 when bit space 0 is lit as the barcode is.
+    mean: f64,
+}
+
+/// One ring's silhouette, for [`CentreFit::add_frame`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Silhouette {
+    /// Axis coordinate of the ring, mm on the calibrated line.
+    pub s_mm: f64,
+    /// Centre offset across the calibrated line, px.
+    pub offset_px: f64,
+    /// Half width over the calibrated radius.
+    pub ratio: f64,
+    /// The calibrated radius there, px.
+    pub radius_px: f64,
 }
 
 /// The learnt centre line, seen from one frame's marker position.

@@ -1,6 +1,8 @@
 //! Angle diagnostics on the simulator: per-row errors of the enhanced mode against truth, as CSV.
 //!
 //! `cargo run --release --example angle_diag -- scenario NAME FRAMES VARIATION OUT.csv`
+//! (`SEED=N` picks the scenario, noise and click seed, 3 by default; `STRIDE=K` processes
+//! every K-th frame, as `rodtrack evaluate` does for slow scenarios.)
 //! `cargo run --release --example angle_diag -- grid VARIATION NOISE(0|1) OUT.csv`
 //!
 //! `grid` renders still states (every rod at a grid of positions and angles) and measures each
@@ -43,16 +45,20 @@ fn setup(
             c.noise = NoiseModel::none();
         }
     }
-    let sc = Scenario::by_name(scenario, &scene, 3)
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    let sc = Scenario::by_name(scenario, &scene, seed)
         .unwrap()
         .with_frames(frames);
     let mut sim = Simulation::new(scene, cams, sc, RenderMode::Fast)
         .unwrap()
-        .with_seed(3);
+        .with_seed(seed);
     let mut all = Vec::new();
     let mut cals = Vec::new();
     for cam in 0..sim.cameras().len() {
-        let inputs = sim.calibration_inputs(cam, 3).unwrap();
+        let inputs = sim.calibration_inputs(cam, seed).unwrap();
         let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
         let meta = sim.render_reference(cam, &mut buf).unwrap();
         let m = inputs.opencv_model_optional.as_ref().unwrap();
@@ -110,12 +116,16 @@ fn main() {
             let mut f_out = std::fs::File::create(out).unwrap();
             writeln!(
                 f_out,
-                "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason"
+                "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason,centre_px,ratio,eps"
             )
             .unwrap();
             for (cam, trs) in trackers.iter_mut().enumerate() {
                 let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
-                for f in 0..sim.frame_count() {
+                let stride: usize = std::env::var("STRIDE")
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(1);
+                for f in (0..sim.frame_count()).step_by(stride.max(1)) {
                     let meta = sim.render(f, cam, &mut buf).unwrap();
                     let view =
                         FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
@@ -124,9 +134,10 @@ fn main() {
                     for tr in trs.iter_mut() {
                         let r = tr.process(&view).unwrap();
                         let t = truth.iter().find(|t| t.m.rod == tr.rod()).unwrap();
+                        let (centre_px, ratio, eps) = tr.learnt(r.position_mm + 75.0);
                         writeln!(
                             f_out,
-                            "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{}",
+                            "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{},{centre_px:.4},{ratio:.4},{eps:.2}",
                             tr.rod(),
                             t.visible as u8,
                             r.status,
@@ -226,6 +237,88 @@ fn main() {
                         }
                     }
                 }
+            }
+        }
+        "profile" => {
+            // Luma along the rod's line and across the face at each bit space, one frame.
+            let (name, frames, cam, rod, f) = (
+                &args[2],
+                args[3].parse().unwrap(),
+                args[4].parse::<usize>().unwrap(),
+                args[5].parse::<u32>().unwrap(),
+                args[6].parse::<usize>().unwrap(),
+            );
+            let (mut sim, _, cals) = setup(name, frames, "default", true);
+            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+            let meta = sim.render(f, cam, &mut buf).unwrap();
+            let view =
+                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+            let truth = sim.truth(f, cam).unwrap();
+            let t = truth.iter().find(|t| t.m.rod == rod).unwrap();
+            let c = cals[cam].iter().find(|c| c.rod == rod).unwrap();
+            let m = rodtrack_core::Marker::v1();
+            println!("truth pos {:.3} ang {:.4}", t.m.position_mm, t.m.angle_rad);
+            let pos = t.m.position_mm;
+            let mut line = String::new();
+            for u in (-4..=112).step_by(2) {
+                let lp = c.knots.at(pos + u as f64);
+                let v = view.luma_bilinear(lp.x as f32, lp.y as f32);
+                line += &format!("{u}:{v:.0} ");
+            }
+            println!("along: {line}");
+            for k in 0..5u32 {
+                let lp = c.knots.at(pos + m.bit_space_centre_mm(k));
+                let mut l = String::new();
+                for j in -9..=9 {
+                    let (x, y) = lp.offset(0.0, j as f64 / 10.0 * lp.radius_px);
+                    l += &format!("{:.0} ", view.luma_bilinear(x as f32, y as f32));
+                }
+                println!("bit {k} across: {l}");
+            }
+        }
+        "rings" => {
+            // The rings' silhouettes of one rod in one frame against the true axis.
+            let (name, frames, variation, cam, rod, f) = (
+                &args[2],
+                args[3].parse().unwrap(),
+                &args[4],
+                args[5].parse::<usize>().unwrap(),
+                args[6].parse::<u32>().unwrap(),
+                args[7].parse::<usize>().unwrap(),
+            );
+            let (mut sim, _, cals) = setup(name, frames, variation, true);
+            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+            let meta = sim.render(f, cam, &mut buf).unwrap();
+            let view =
+                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+            let truth = sim.truth(f, cam).unwrap();
+            let t = truth.iter().find(|t| t.m.rod == rod).unwrap();
+            let c = cals[cam].iter().find(|c| c.rod == rod).unwrap();
+            let m = rodtrack_core::Marker::v1();
+            let rc = sim.scene().rods[rod as usize].clone();
+            let pos = t.m.position_mm;
+            println!("truth pos {:.3} ang {:.4}", pos, t.m.angle_rad);
+            for u in rodtrack_core::track::ring_rows(&m) {
+                let lp = c.knots.at(pos + u);
+                let y = rc.marker_y(u, pos);
+                let true_off = sim
+                    .project_rod_axis(cam, rod as usize, y)
+                    .ok()
+                    .flatten()
+                    .map(|(x, yy)| (x - lp.x) * -lp.ty + (yy - lp.y) * lp.tx);
+                let sil = rodtrack_core::track::ring_silhouette(&view, &lp);
+                println!(
+                    "u {u:6.1}: silhouette {:?} radius_px {:.2} true offset {:?}",
+                    sil.map(|(c, hw)| (format!("{c:+.3}"), format!("{:.4}", hw / lp.radius_px))),
+                    lp.radius_px,
+                    true_off.map(|o| format!("{o:+.3}"))
+                );
+                let mut l = String::new();
+                for j in -20..=20 {
+                    let (x, yy) = lp.offset(0.0, j as f64 * 0.1 * lp.radius_px);
+                    l += &format!("{:.0} ", view.luma_bilinear(x as f32, yy as f32));
+                }
+                println!("   across (-2R..2R): {l}");
             }
         }
         other => panic!("unknown mode {other}"),

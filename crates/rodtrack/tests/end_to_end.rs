@@ -16,13 +16,19 @@ struct Errors {
 }
 
 fn run(scenario: &str, frames: usize, mode: Mode) -> Errors {
+    run_every(scenario, frames, 1, 3, mode)
+}
+
+/// Every `stride`-th of the scenario's first `frames` frames (a camera at 200/`stride` fps),
+/// with `seed` for the scenario, the noise and the clicks.
+fn run_every(scenario: &str, frames: usize, stride: usize, seed: u64, mode: Mode) -> Errors {
     let scene = SceneConfig::default();
-    let sc = Scenario::by_name(scenario, &scene, 3)
+    let sc = Scenario::by_name(scenario, &scene, seed)
         .unwrap()
         .with_frames(frames);
     let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
         .unwrap()
-        .with_seed(3);
+        .with_seed(seed);
     let mut errs = Errors {
         pos: vec![],
         ang: vec![],
@@ -30,7 +36,7 @@ fn run(scenario: &str, frames: usize, mode: Mode) -> Errors {
         full_searches: vec![],
     };
     for cam in 0..sim.cameras().len() {
-        let inputs = sim.calibration_inputs(cam, 3).unwrap();
+        let inputs = sim.calibration_inputs(cam, seed).unwrap();
         let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
         let meta = sim.render_reference(cam, &mut buf).unwrap();
         let m = inputs.opencv_model_optional.as_ref().unwrap();
@@ -47,7 +53,7 @@ fn run(scenario: &str, frames: usize, mode: Mode) -> Errors {
                 })
                 .collect()
         };
-        for f in 0..sim.frame_count() {
+        for f in (0..sim.frame_count()).step_by(stride) {
             let meta = sim.render(f, cam, &mut buf).unwrap();
             let view =
                 FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
@@ -86,13 +92,11 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
 }
 
-/// The issue's accuracy targets on a table that never moves. Not met yet: with no motion the
-/// tracker cannot learn the centre line and mm scale beyond what the single reference frame
-/// gives (measured: position std 0.103 mm; the angle now meets its target, see
-/// `enhanced_meets_the_angle_targets_on_a_static_table`). Kept as the open target; run with
-/// `--ignored`.
+/// The issue's accuracy targets on a table that never moves: nothing is learnt from motion,
+/// so this checks what calibration gives from the first frame (the centre line from the rings'
+/// silhouettes along the whole marker; the mm scale measured at the reference, and each frame's
+/// own barcode scale at the rod's place).
 #[test]
-#[ignore = "accuracy target on a static table not met yet: see the issue notes"]
 fn enhanced_beats_targets_on_a_static_table_and_paper_is_a_fair_baseline() {
     let e = run("static", 20, Mode::Enhanced);
     let p = run("static", 20, Mode::Paper);
@@ -116,27 +120,34 @@ fn enhanced_beats_targets_on_a_static_table_and_paper_is_a_fair_baseline() {
     assert!(e.pos.len() >= 200, "enough rows: {}", e.pos.len());
     assert_eq!(e.not_ok, 0);
     assert!(max_abs(&e.pos) <= 0.5, "position max {}", max_abs(&e.pos));
-    assert!(std(&e.pos) <= 0.1);
+    assert!(std(&e.pos) <= 0.1, "position std {}", std(&e.pos));
+    assert!(std(&e.ang) <= 0.003, "angle std {}", std(&e.ang));
     assert!(max_abs(&e.ang) <= 0.02, "angle max {}", max_abs(&e.ang));
     // The paper's mode works, with its coarser resolution.
     assert!(max_abs(&p.pos) < 3.0);
 }
 
-/// The angle targets on a table that never moves (std <= 0.003 rad, max <= 0.02 rad): with no
-/// motion nothing is learnt beyond the reference frame, so this checks what calibration gives
-/// from frame 1 (the centre line from the rings' silhouettes along the whole marker).
+/// The `lighting` scenario: the light dims to 30 % and back while a lamp's glare (170 DN at its
+/// peak) comes and goes beside the rods, over a light gradient of 4:1 across the table. The
+/// Gray code then lies in other light than the barcode; its bits must still be read right:
+/// no gross error, and the angle targets hold (every 5th frame, as `rodtrack evaluate` runs it).
 #[test]
-fn enhanced_meets_the_angle_targets_on_a_static_table() {
-    let e = run("static", 20, Mode::Enhanced);
+fn enhanced_reads_the_gray_code_under_glare_and_a_light_gradient() {
+    let e = run_every("lighting", 4000, 5, 7, Mode::Enhanced);
+    let gross = e.ang.iter().filter(|a| a.abs() >= TAU / 32.0).count();
     eprintln!(
-        "static enhanced: n {} not ok {} angle std {:.5} max {:.5} rad",
-        e.ang.len(),
+        "lighting enhanced: n {} not ok {} gross {} pos std {:.4} max {:.4} mm, angle std {:.5} \
+         max {:.5} rad",
+        e.pos.len(),
         e.not_ok,
+        gross,
+        std(&e.pos),
+        max_abs(&e.pos),
         std(&e.ang),
         max_abs(&e.ang)
     );
-    assert!(e.ang.len() >= 200, "enough rows: {}", e.ang.len());
-    assert_eq!(e.not_ok, 0);
+    assert_eq!(gross, 0, "gross errors");
+    assert!(e.not_ok * 100 <= e.pos.len(), "not ok: {}", e.not_ok);
     assert!(std(&e.ang) <= 0.003, "angle std {}", std(&e.ang));
     assert!(max_abs(&e.ang) <= 0.02, "angle max {}", max_abs(&e.ang));
 }
