@@ -4,7 +4,12 @@
 //! (`SEED=N` picks the scenario, noise and click seed, 3 by default; `STRIDE=K` processes
 //! every K-th frame, as `rodtrack evaluate` does for slow scenarios.)
 //! `cargo run --release --example angle_diag -- grid VARIATION NOISE(0|1) OUT.csv`
+//! `cargo run --release --example angle_diag -- profile NAME FRAMES CAM ROD FRAME`
+//! `cargo run --release --example angle_diag -- rings NAME FRAMES VARIATION CAM ROD FRAME`
 //!
+//! `scenario` also prints a summary: the errors of the rows reported ok on visible markers,
+//! and the rows reported ok on hidden ones. `profile` prints the luma along one rod's marker
+//! and across it at each bit space; `rings` the rings' silhouettes against the true axis.
 //! `grid` renders still states (every rod at a grid of positions and angles) and measures each
 //! with a fresh tracker (what the first frame after calibration gives).
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
@@ -119,6 +124,8 @@ fn main() {
                 "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason,centre_px,ratio,eps"
             )
             .unwrap();
+            // Visible and ok: angle and position errors; not visible but ok: angle errors.
+            let (mut ang, mut pos, mut not_ok, mut false_ok) = (vec![], vec![], 0, vec![]);
             for (cam, trs) in trackers.iter_mut().enumerate() {
                 let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
                 let stride: usize = std::env::var("STRIDE")
@@ -135,6 +142,16 @@ fn main() {
                         let r = tr.process(&view).unwrap();
                         let t = truth.iter().find(|t| t.m.rod == tr.rod()).unwrap();
                         let (centre_px, ratio, eps) = tr.learnt(r.position_mm + 75.0);
+                        let err = wrap(r.angle_rad - t.m.angle_rad);
+                        match (t.visible, r.status == Status::Ok) {
+                            (true, true) => {
+                                ang.push(err);
+                                pos.push(r.position_mm - t.m.position_mm);
+                            }
+                            (true, false) => not_ok += 1,
+                            (false, true) => false_ok.push(err),
+                            (false, false) => {}
+                        }
                         writeln!(
                             f_out,
                             "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{},{centre_px:.4},{ratio:.4},{eps:.2}",
@@ -159,6 +176,23 @@ fn main() {
                     }
                 }
             }
+            let stats = |v: &[f64]| {
+                let n = v.len().max(1) as f64;
+                let m = v.iter().sum::<f64>() / n;
+                let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
+                (sd, v.iter().fold(0.0f64, |a, b| a.max(b.abs())))
+            };
+            let gross = ang.iter().filter(|a| a.abs() >= TAU / 32.0).count();
+            let (a_sd, a_max) = stats(&ang);
+            let (p_sd, p_max) = stats(&pos);
+            let wrong_ok = false_ok.iter().filter(|a| a.abs() > 0.2).count();
+            println!(
+                "{name} {variation}, each camera: {} rows ok on visible markers, {not_ok} not ok, \
+                 {gross} gross; angle std {a_sd:.4} max {a_max:.4} rad; position std {p_sd:.4} \
+                 max {p_max:.4} mm; {} ok on hidden markers, {wrong_ok} off by > 0.2 rad",
+                ang.len(),
+                false_ok.len()
+            );
         }
         "grid" => {
             let (variation, noise, out) = (&args[2], args[3] == "1", &args[4]);
