@@ -1,4 +1,4 @@
-//! The live view's overlays from [`CameraOverlays`] (the rods' constant parts computed once)
+//! The live view's overlays from `CameraOverlays` (the rods' constant parts computed once)
 //! are those computed from scratch from the trackers' knots, frame after frame of the simulated
 //! demo, and serialise to the JSON the page reads (plain lists of points and bits).
 #![allow(clippy::unwrap_used)]
@@ -6,8 +6,8 @@
 mod common;
 
 use common::Demo;
-use rodtrack_console::{CameraOverlays, RodOverlay};
-use rodtrack_core::{gray, CameraPipeline, FrameView, Mode, RodResult, RodTracker, Status};
+use rodtrack_console::RodOverlay;
+use rodtrack_core::{gray, FrameView, RodResult, RodTracker, Status};
 
 /// The overlay's JSON as computed before the constant parts were cached: straight from the
 /// tracker's knots ([`rodtrack_core::Knots::at`]) with vectors.
@@ -76,18 +76,7 @@ fn reference(tracker: &RodTracker, result: &RodResult) -> serde_json::Value {
 fn cached_overlays_equal_the_ones_computed_from_the_knots() {
     let frames = 60;
     let mut demo = Demo::new(frames);
-    let mut pipes: Vec<CameraPipeline> = demo
-        .cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Enhanced).unwrap())
-        .collect();
-    let geometry: Vec<CameraOverlays> = pipes
-        .iter()
-        .map(|p| CameraOverlays::new(p.rods()))
-        .collect();
-    let mut bufs: Vec<Vec<u8>> = (0..pipes.len())
-        .map(|c| vec![0u8; demo.sim.frame_bytes(c).unwrap()])
-        .collect();
+    let (mut pipes, geometry, mut bufs) = demo.pipelines();
     let mut overlays: Vec<Vec<RodOverlay>> = vec![Vec::new(); pipes.len()];
     let (mut rows, mut markers) = (Vec::new(), 0usize);
     for f in 0..frames {

@@ -15,7 +15,7 @@
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use rodtrack_core::calib::calibrate_rod;
-use rodtrack_core::{CameraIntrinsics, FrameView, Mode, RodTracker, Status};
+use rodtrack_core::{CameraIntrinsics, FrameView, Marker, Mode, RodTracker, Status};
 use rodtrack_sim::{
     apply_variation, default_cameras, NoiseModel, RenderMode, RodPose, Scenario, SceneConfig,
     Simulation, WorldState,
@@ -109,6 +109,42 @@ fn setup(
         cals.push(cs);
     }
     (sim, all, cals)
+}
+
+/// One rendered frame of one camera, with one rod's truth and calibration.
+struct OneFrame {
+    sim: Simulation,
+    buf: Vec<u8>,
+    meta: rodtrack_sim::FrameMeta,
+    truth: rodtrack_core::Measurement,
+    calib: rodtrack_core::calib::RodCalibration,
+}
+
+impl OneFrame {
+    fn new(name: &str, frames: usize, variation: &str, cam: usize, rod: u32, f: usize) -> Self {
+        let (mut sim, _, cals) = setup(name, frames, variation, true);
+        let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+        let meta = sim.render(f, cam, &mut buf).unwrap();
+        let truth = sim.truth(f, cam).unwrap();
+        let truth = truth.iter().find(|t| t.m.rod == rod).unwrap().m;
+        let calib = cals[cam].iter().find(|c| c.rod == rod).unwrap().clone();
+        println!(
+            "truth pos {:.3} ang {:.4}",
+            truth.position_mm, truth.angle_rad
+        );
+        OneFrame {
+            sim,
+            buf,
+            meta,
+            truth,
+            calib,
+        }
+    }
+
+    fn view(&self) -> FrameView<'_> {
+        let m = &self.meta;
+        FrameView::new(&self.buf, m.width, m.height, m.stride, m.format).unwrap()
+    }
 }
 
 fn main() {
@@ -282,17 +318,8 @@ fn main() {
                 args[5].parse::<u32>().unwrap(),
                 args[6].parse::<usize>().unwrap(),
             );
-            let (mut sim, _, cals) = setup(name, frames, "default", true);
-            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
-            let meta = sim.render(f, cam, &mut buf).unwrap();
-            let view =
-                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-            let truth = sim.truth(f, cam).unwrap();
-            let t = truth.iter().find(|t| t.m.rod == rod).unwrap();
-            let c = cals[cam].iter().find(|c| c.rod == rod).unwrap();
-            let m = rodtrack_core::Marker::v1();
-            println!("truth pos {:.3} ang {:.4}", t.m.position_mm, t.m.angle_rad);
-            let pos = t.m.position_mm;
+            let one = OneFrame::new(name, frames, "default", cam, rod, f);
+            let (view, c, m, pos) = (one.view(), &one.calib, Marker::v1(), one.truth.position_mm);
             let mut line = String::new();
             for u in (-4..=112).step_by(2) {
                 let lp = c.knots.at(pos + u as f64);
@@ -320,18 +347,9 @@ fn main() {
                 args[6].parse::<u32>().unwrap(),
                 args[7].parse::<usize>().unwrap(),
             );
-            let (mut sim, _, cals) = setup(name, frames, variation, true);
-            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
-            let meta = sim.render(f, cam, &mut buf).unwrap();
-            let view =
-                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-            let truth = sim.truth(f, cam).unwrap();
-            let t = truth.iter().find(|t| t.m.rod == rod).unwrap();
-            let c = cals[cam].iter().find(|c| c.rod == rod).unwrap();
-            let m = rodtrack_core::Marker::v1();
-            let rc = sim.scene().rods[rod as usize].clone();
-            let pos = t.m.position_mm;
-            println!("truth pos {:.3} ang {:.4}", pos, t.m.angle_rad);
+            let one = OneFrame::new(name, frames, variation, cam, rod, f);
+            let (view, c, m, pos) = (one.view(), &one.calib, Marker::v1(), one.truth.position_mm);
+            let (sim, rc) = (&one.sim, one.sim.scene().rods[rod as usize].clone());
             for u in rodtrack_core::track::ring_rows(&m) {
                 let lp = c.knots.at(pos + u);
                 let y = rc.marker_y(u, pos);

@@ -363,6 +363,24 @@ impl Demo {
         Demo { sim, cals, setups }
     }
 
+    /// Each camera's enhanced-mode pipeline, its overlays' constant parts (once per camera, as
+    /// `rodtrack demo` and `rodtrack track --console` compute them) and a frame buffer.
+    pub fn pipelines(&self) -> (Vec<CameraPipeline>, Vec<CameraOverlays>, Vec<Vec<u8>>) {
+        let pipes: Vec<CameraPipeline> = self
+            .cals
+            .iter()
+            .map(|c| CameraPipeline::new(c, Mode::Enhanced).unwrap())
+            .collect();
+        let geometry = pipes
+            .iter()
+            .map(|p| CameraOverlays::new(p.rods()))
+            .collect();
+        let bufs = (0..pipes.len())
+            .map(|c| vec![0u8; self.sim.frame_bytes(c).unwrap()])
+            .collect();
+        (pipes, geometry, bufs)
+    }
+
     /// Renders, tracks and publishes `frames` frame sets (`paced`: no faster than 200 fps).
     /// Returns the times of every step, rendering excluded.
     pub fn run(
@@ -374,21 +392,8 @@ impl Demo {
     ) -> Timings {
         let mut tm = Timings::default();
         let ncam = self.cals.len();
-        let mut pipes: Vec<CameraPipeline> = self
-            .cals
-            .iter()
-            .map(|c| CameraPipeline::new(c, Mode::Enhanced).unwrap())
-            .collect();
-        // The overlays' constant parts, once per camera (as `rodtrack demo` and `rodtrack
-        // track --console` do).
-        let geometry: Vec<CameraOverlays> = pipes
-            .iter()
-            .map(|p| CameraOverlays::new(p.rods()))
-            .collect();
+        let (mut pipes, geometry, mut bufs) = self.pipelines();
         let mut filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
-        let mut bufs: Vec<Vec<u8>> = (0..ncam)
-            .map(|c| vec![0u8; self.sim.frame_bytes(c).unwrap()])
-            .collect();
         let (mut rows, mut filtered, mut overlays) = (Vec::new(), Vec::new(), Vec::new());
         let (mut track_s, mut publish_s) = (0.0, 0.0);
         let n = self.sim.frame_count();
