@@ -81,6 +81,11 @@ const EDGE_SAMPLES_PER_CELL: usize = 10;
 /// [`EPS_RESCORE_EVERY`]th frame.
 const EPS_LEARN_FRAMES: u64 = 64;
 const EPS_RESCORE_EVERY: u64 = 8;
+/// The phase's grid of radius corrections `eps`: `EPS_GRID` values from -0.08 by 0.01.
+const EPS_GRID: usize = 21;
+fn eps_of(i: usize) -> f64 {
+    (i as f64 - 8.0) * 0.01
+}
 /// Per-frame forgetting factor of the `eps` scores.
 const EPS_FORGET: f64 = 0.995;
 /// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
@@ -583,7 +588,7 @@ impl RodTracker {
                 (d, d.cos(), d.sin())
             })
             .collect();
-        let eps_values: Vec<f64> = (-8..=12).map(|i| i as f64 * 0.01).collect();
+        let eps_values: Vec<f64> = (0..EPS_GRID).map(eps_of).collect();
         let eps_tables: Vec<Vec<(f64, f64, f64)>> = eps_values
             .iter()
             .map(|eps| {
@@ -676,7 +681,7 @@ impl RodTracker {
     pub fn learnt(&self, s_mm: f64) -> (f64, f64, f64) {
         let st = &self.enhanced;
         let (offset, ratio) = st.centre.at(s_mm);
-        (offset, ratio, (st.eps_best as f64 - 8.0) * 0.01)
+        (offset, ratio, eps_of(st.eps_best))
     }
 
     /// The rod id.

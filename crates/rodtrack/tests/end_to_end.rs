@@ -2,8 +2,7 @@
 //! reference frames, track, and check accuracy against ground truth in both modes.
 #![allow(missing_docs, clippy::unwrap_used)]
 
-use rodtrack_core::calib::calibrate_rod;
-use rodtrack_core::{CameraIntrinsics, FrameView, Mode, RodTracker, Status};
+use rodtrack_core::{FrameView, Mode, RodTracker, Status};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 use std::f64::consts::TAU;
 
@@ -36,23 +35,13 @@ fn run_every(scenario: &str, frames: usize, stride: usize, seed: u64, mode: Mode
         full_searches: vec![],
     };
     for cam in 0..sim.cameras().len() {
-        let inputs = sim.calibration_inputs(cam, seed).unwrap();
+        let cal = sim.calibrated_camera(cam, seed).unwrap();
+        let mut trackers: Vec<RodTracker> = cal
+            .rods
+            .iter()
+            .map(|c| RodTracker::new(c, cal.image_width, cal.image_height, mode).unwrap())
+            .collect();
         let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
-        let meta = sim.render_reference(cam, &mut buf).unwrap();
-        let m = inputs.opencv_model_optional.as_ref().unwrap();
-        let intr = CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap();
-        let mut trackers: Vec<RodTracker> = {
-            let view =
-                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-            inputs
-                .rods
-                .iter()
-                .map(|r| {
-                    let c = calibrate_rod(r, &view, Some(&intr)).unwrap();
-                    RodTracker::new(&c, meta.width, meta.height, mode).unwrap()
-                })
-                .collect()
-        };
         for f in (0..sim.frame_count()).step_by(stride) {
             let meta = sim.render(f, cam, &mut buf).unwrap();
             let view =
@@ -82,6 +71,22 @@ fn run_every(scenario: &str, frames: usize, stride: usize, seed: u64, mode: Mode
     errs
 }
 
+/// Prints one run's errors as `what`; returns its gross errors (a Gray step or more).
+fn report(e: &Errors, what: &str) -> usize {
+    let gross = e.ang.iter().filter(|a| a.abs() >= TAU / 32.0).count();
+    eprintln!(
+        "{what}: n {} not ok {} gross {} pos std {:.4} max {:.4} mm, angle std {:.5} max {:.5} rad",
+        e.pos.len(),
+        e.not_ok,
+        gross,
+        std(&e.pos),
+        max_abs(&e.pos),
+        std(&e.ang),
+        max_abs(&e.ang)
+    );
+    gross
+}
+
 fn std(v: &[f64]) -> f64 {
     let n = v.len().max(1) as f64;
     let m = v.iter().sum::<f64>() / n;
@@ -100,23 +105,8 @@ fn max_abs(v: &[f64]) -> f64 {
 fn enhanced_beats_targets_on_a_static_table_and_paper_is_a_fair_baseline() {
     let e = run("static", 20, Mode::Enhanced);
     let p = run("static", 20, Mode::Paper);
-    eprintln!(
-        "static enhanced: n {} not ok {} pos std {:.4} max {:.4} mm, angle std {:.5} max {:.5} rad",
-        e.pos.len(),
-        e.not_ok,
-        std(&e.pos),
-        max_abs(&e.pos),
-        std(&e.ang),
-        max_abs(&e.ang)
-    );
-    eprintln!(
-        "static paper: n {} pos std {:.4} max {:.4} mm, angle std {:.5} max {:.5} rad",
-        p.pos.len(),
-        std(&p.pos),
-        max_abs(&p.pos),
-        std(&p.ang),
-        max_abs(&p.ang)
-    );
+    report(&e, "static enhanced");
+    report(&p, "static paper");
     assert!(e.pos.len() >= 200, "enough rows: {}", e.pos.len());
     assert_eq!(e.not_ok, 0);
     assert!(max_abs(&e.pos) <= 0.5, "position max {}", max_abs(&e.pos));
@@ -134,18 +124,7 @@ fn enhanced_beats_targets_on_a_static_table_and_paper_is_a_fair_baseline() {
 #[test]
 fn enhanced_reads_the_gray_code_under_glare_and_a_light_gradient() {
     let e = run_every("lighting", 4000, 5, 7, Mode::Enhanced);
-    let gross = e.ang.iter().filter(|a| a.abs() >= TAU / 32.0).count();
-    eprintln!(
-        "lighting enhanced: n {} not ok {} gross {} pos std {:.4} max {:.4} mm, angle std {:.5} \
-         max {:.5} rad",
-        e.pos.len(),
-        e.not_ok,
-        gross,
-        std(&e.pos),
-        max_abs(&e.pos),
-        std(&e.ang),
-        max_abs(&e.ang)
-    );
+    let gross = report(&e, "lighting enhanced");
     assert_eq!(gross, 0, "gross errors");
     assert!(e.not_ok * 100 <= e.pos.len(), "not ok: {}", e.not_ok);
     assert!(std(&e.ang) <= 0.003, "angle std {}", std(&e.ang));
@@ -157,18 +136,7 @@ fn enhanced_reads_the_gray_code_under_glare_and_a_light_gradient() {
 #[test]
 fn enhanced_tracks_the_papers_experiment_3() {
     let e = run("exp3", 150, Mode::Enhanced);
-    let gross = e.ang.iter().filter(|a| a.abs() >= TAU / 32.0).count();
-    eprintln!(
-        "exp3 enhanced: n {} not ok {} gross {} pos std {:.4} max {:.4} mm, angle std {:.5} \
-         max {:.5} rad",
-        e.pos.len(),
-        e.not_ok,
-        gross,
-        std(&e.pos),
-        max_abs(&e.pos),
-        std(&e.ang),
-        max_abs(&e.ang)
-    );
+    let gross = report(&e, "exp3 enhanced");
     assert!(e.pos.len() > 1000);
     assert_eq!(e.not_ok, 0);
     assert!(

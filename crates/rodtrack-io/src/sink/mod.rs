@@ -219,18 +219,17 @@ pub(crate) fn push_csv_row(out: &mut String, m: &Measurement) {
     let _ = write!(out, "{},", m.frame);
     push_fixed(out, m.timestamp_s, TIMESTAMP_S);
     let _ = write!(out, ",{},{},", m.camera, m.rod);
-    push_fixed(out, m.position_mm, POSITION_MM);
-    out.push(',');
-    push_fixed(out, m.angle_rad, ANGLE_RAD);
-    out.push(',');
-    push_fixed(out, m.angle_unwrapped_rad, ANGLE_RAD);
-    out.push(',');
-    push_fixed(out, m.velocity_mm_s, VELOCITY_MM_S);
-    out.push(',');
-    push_fixed(out, m.angular_velocity_rad_s, ANGULAR_VELOCITY_RAD_S);
-    out.push(',');
-    push_fixed(out, m.quality, QUALITY);
-    out.push(',');
+    for (v, decimals) in [
+        (m.position_mm, POSITION_MM),
+        (m.angle_rad, ANGLE_RAD),
+        (m.angle_unwrapped_rad, ANGLE_RAD),
+        (m.velocity_mm_s, VELOCITY_MM_S),
+        (m.angular_velocity_rad_s, ANGULAR_VELOCITY_RAD_S),
+        (m.quality, QUALITY),
+    ] {
+        push_fixed(out, v, decimals);
+        out.push(',');
+    }
     out.push_str(m.status.name());
     out.push('\n');
 }
