@@ -178,8 +178,10 @@ impl PreparedKnots {
     pub fn at(&self, s_mm: f64) -> LinePoint {
         let n = self.rows.len();
         let g = ((s_mm - self.s0_mm) * self.inv_step).clamp(0.0, (n - 1) as f64);
-        let i = (g as usize).min(n - 2);
+        // Through u32: one instruction each way (the knots are far fewer than 2^32).
+        let i = (g as u32).min(n as u32 - 2);
         let f = g - i as f64;
+        let i = i as usize;
         let a = &self.rows[i];
         let b = &self.rows[i + 1];
         LinePoint {

@@ -69,10 +69,12 @@ pub struct RodResult {
 const SEARCH_MARGIN_MM: f64 = 10.0;
 /// Fine-profile half length around an edge, in cells.
 const EDGE_HALF_CELLS: f64 = 0.5;
-/// Half width of the search window around where the marker is expected (the last frame's
-/// position plus its motion), mm: a change of speed of 2.4 m/s from one frame to the next at
-/// 200 fps. Beyond it, the whole travel is searched.
-const SEARCH_WINDOW_MM: f64 = 12.0;
+/// Half widths of the search windows around where the marker is expected (the last frame's
+/// position plus its motion), mm, tried in turn: a change of speed of 0.8 m/s, then of
+/// 2.4 m/s, from one frame to the next at 200 fps. Beyond them, the whole travel is searched.
+/// The prediction is usually right to a fraction of a mm, so the narrow window nearly always
+/// holds the peak, at a third of the wide one's cost.
+const SEARCH_WINDOWS_MM: [f64; 2] = [4.0, 12.0];
 /// Largest motion from one frame to the next taken as motion (not a jump), mm.
 const MAX_MOTION_MM: f64 = 40.0;
 /// Fine-profile samples per cell.
@@ -823,17 +825,7 @@ impl RodTracker {
             _ => p,
         });
         st.frames_seen = st.frames_seen.wrapping_add(1);
-        // Once the line is learnt, every 4th frame, then every 16th, is enough to follow slow
-        // changes; but where the marker has not been yet, the line is extrapolated and every
-        // frame adds to it until it is learnt there too.
-        let u_mid = st.ring_u.iter().sum::<f64>() / st.ring_u.len().max(1) as f64;
-        let every = match st.centre.samples() {
-            _ if !st.centre.covers(p + u_mid) => 1,
-            n if n < 60.0 => 1,
-            n if n < 600.0 => 4,
-            _ => 16,
-        };
-        if st.frames_seen % every == 0 {
+        if st.learns_centre(p, st.frames_seen) {
             st.learn_centre(frame, edges.position_mm);
         }
         let inter = Intermediate { loc, edges };
@@ -852,36 +844,50 @@ impl RodTracker {
         )
     }
 
-    /// Touches the frame's cache lines where this rod's marker is expected (enhanced mode, when
-    /// the last frame found it); see [`FrameView::touch_rect`]. Call it for every rod of a
-    /// frame before measuring any. Returns a mix of the bytes read.
+    /// Touches the frame's cache lines that measuring this rod will read (enhanced mode, when
+    /// the last frame found it), where the marker is expected: a narrow strip along the line
+    /// for the barcode's correlation and edges and the Gray bits, the full width across the
+    /// rod over bit space 0's phase rows, and the shading's and the rings' rows on the frames
+    /// that measure them; see [`FrameView::touch_rect`]. Call it for every rod of a frame
+    /// before measuring any: the misses then overlap instead of stalling each read in turn.
+    /// Returns a mix of the bytes read.
     pub fn prefetch(&self, frame: &FrameView) -> u8 {
         let st = &self.enhanced;
         let (Mode::Enhanced, Some(p)) = (self.mode, st.predicted_mm) else {
             return 0;
         };
         let m = &self.marker;
-        let margin_mm = 3.0;
-        let (a, b) = (
-            p + m.barcode_start_mm() - margin_mm,
-            p + m.length_mm() + margin_mm,
+        // The Gray and quiet-zone samples' reach across the line (the widest of the strip's
+        // reads), and every read's bilinear footprint.
+        let gray_across = GRAY_SAMPLES
+            .iter()
+            .chain(&QUIET_SAMPLES)
+            .fold(0.0f64, |a, s| a.max(s.1.abs()));
+        let footprint_px = 2.0;
+        let mut acc = 0u8;
+        let mut touch = |a_mm: f64, b_mm: f64, radii: f64| {
+            acc ^= st.touch_strip(frame, p + a_mm, p + b_mm, radii, footprint_px);
+        };
+        let search_mm = SEARCH_WINDOWS_MM[0] + 1.0;
+        touch(
+            m.barcode_start_mm() - search_mm,
+            m.length_mm() + 1.0,
+            gray_across,
         );
-        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-        let n = ((b - a) / 8.0).ceil().max(1.0) as usize;
-        for i in 0..=n {
-            let lp = st.knots.at(a + (b - a) * i as f64 / n as f64);
-            // The phase, shading and Gray samples lie within the radius, plus the bilinear
-            // footprint; the rings' silhouettes (1.5 R) are read on few frames.
-            let r = lp.radius_px + 3.0;
-            for side in [-r, r] {
-                let (x, y) = lp.offset(0.0, side);
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
+        let (c0, half0) = (m.bit_space_centre_mm(0), 0.25 * m.bit_space_mm() + 1.0);
+        // The learnt centre and radius move the phase's samples by a fraction of a radius.
+        touch(c0 - half0, c0 + half0, 1.1);
+        if st.shading_due(p) {
+            for &u in st.white_u.iter().chain(&st.black_u) {
+                touch(u - 1.0, u + 1.0, 1.1);
             }
         }
-        frame.touch_rect(x0, y0, x1, y1)
+        if st.learns_centre(p, st.frames_seen.wrapping_add(1)) {
+            for &u in &st.ring_u {
+                touch(u - 1.0, u + 1.0, 1.5);
+            }
+        }
+        acc
     }
 
     /// Runs one stage of the enhanced mode on `frame`, on the intermediate results of the last
@@ -998,18 +1004,21 @@ impl EnhancedState {
         let st = self;
         let node_off = frame.node_offset() as f64;
         let n_cand = st.corr.len();
-        let window = (SEARCH_WINDOW_MM / st.coarse_step).ceil() as usize;
         let mut found = None;
         if let (Some(_), Some(p)) = (st.last_k, st.predicted_mm) {
             // Around where the last frame's motion says the marker is now.
             let k0 = ((p + m.barcode_start_mm() - st.coarse_s0) / st.coarse_step)
                 .round()
                 .clamp(0.0, (n_cand - 1) as f64) as usize;
-            let (lo, hi) = (k0.saturating_sub(window), (k0 + window).min(n_cand - 1));
-            if let Some((k, c, sub)) = coarse_search(st, frame, node_off, lo, hi) {
-                let inside = (k > lo || lo == 0) && (k < hi || hi == n_cand - 1);
-                if inside && c >= 0.8 {
-                    found = Some((k, c, sub));
+            for window_mm in SEARCH_WINDOWS_MM {
+                let window = (window_mm / st.coarse_step).ceil() as usize;
+                let (lo, hi) = (k0.saturating_sub(window), (k0 + window).min(n_cand - 1));
+                if let Some((k, c, sub)) = coarse_search(st, frame, node_off, lo, hi) {
+                    let inside = (k > lo || lo == 0) && (k < hi || hi == n_cand - 1);
+                    if inside && c >= 0.8 {
+                        found = Some((k, c, sub));
+                        break;
+                    }
                 }
             }
         }
@@ -1209,6 +1218,74 @@ impl EnhancedState {
         })
     }
 
+    /// Whether frame number `frame_no` (counted from 1) with the marker at `position_mm`
+    /// adds its rings' silhouettes to the centre line. Once the line is learnt, every 4th
+    /// frame, then every 16th, is enough to follow slow changes; but where the marker has not
+    /// been yet, the line is extrapolated and every frame adds to it until it is learnt there
+    /// too.
+    fn learns_centre(&self, position_mm: f64, frame_no: u64) -> bool {
+        let u_mid = self.ring_u.iter().sum::<f64>() / self.ring_u.len().max(1) as f64;
+        let every = match self.centre.samples() {
+            _ if !self.centre.covers(position_mm + u_mid) => 1,
+            n if n < 60.0 => 1,
+            n if n < 600.0 => 4,
+            _ => 16,
+        };
+        frame_no % every == 0
+    }
+
+    /// Whether the print's shading must be measured with the marker at `position_mm`, or the
+    /// last measurement still serves (see [`EnhancedState::shading`]).
+    fn shading_due(&self, position_mm: f64) -> bool {
+        let near = (position_mm - self.shading_at_mm).abs() <= SHADING_REUSE_MM;
+        !(near && self.shading_age < SHADING_REUSE_FRAMES)
+    }
+
+    /// Touches the frame's cache lines over the marker's stretch `a_mm..b_mm` of the line,
+    /// `radii` radii to either side, and `footprint_px` beyond all round, in pieces short enough that each
+    /// one's bounding box stays close to the strip however the line runs in the image.
+    fn touch_strip(
+        &self,
+        frame: &FrameView,
+        a_mm: f64,
+        b_mm: f64,
+        radii: f64,
+        footprint_px: f64,
+    ) -> u8 {
+        let (pa, pb) = (self.knots.at(a_mm), self.knots.at(b_mm));
+        // A piece's box holds at most about 8 px of the line's run across the image's minor
+        // direction (a line along a row or a column is one piece).
+        let minor = (pb.x - pa.x).abs().min((pb.y - pa.y).abs());
+        let n = (minor / 8.0).ceil().clamp(1.0, 64.0) as usize;
+        let mut acc = 0u8;
+        let mut prev = pa;
+        for i in 1..=n {
+            let next = if i == n {
+                pb
+            } else {
+                self.knots.at(a_mm + (b_mm - a_mm) * i as f64 / n as f64)
+            };
+            let mid = self
+                .knots
+                .at(a_mm + (b_mm - a_mm) * (i as f64 - 0.5) / n as f64);
+            let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+            for lp in [&prev, &mid, &next] {
+                let r = radii * lp.radius_px;
+                for side in [-r, r] {
+                    let (x, y) = lp.offset(0.0, side);
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
+                }
+            }
+            let f = footprint_px;
+            acc ^= frame.touch_rect(x0 - f, y0 - f, x1 + f, y1 + f);
+            prev = next;
+        }
+        acc
+    }
+
     /// The rod's centre and apparent radius where the marker is: this frame's silhouettes of
     /// the marker's white rings feed the centre line learnt over all frames.
     fn learn_centre(&mut self, frame: &FrameView, position_mm: f64) {
@@ -1233,11 +1310,11 @@ impl EnhancedState {
     /// fixed the absolute centre, and with it the angle offset, there; what is learnt is how
     /// the centre runs away from it), and the learnt radius ratio at bit space 0.
     fn centre_at(&self, m: &Marker, reference_position_mm: f64, position_mm: f64) -> CentreAt {
+        let c0 = m.bit_space_centre_mm(0);
+        let (e, radius_ratio) = self.centre.at(position_mm + c0);
         CentreAt {
-            fit: self.centre,
-            position_mm,
-            reference_position_mm,
-            radius_ratio: self.centre.at(position_mm + m.bit_space_centre_mm(0)).1,
+            offset_px: e - self.centre.at(reference_position_mm + c0).0,
+            radius_ratio,
         }
     }
 
@@ -1332,8 +1409,7 @@ impl EnhancedState {
     ) {
         let position = inter.edges.position_mm;
         let (lo, span) = (inter.loc.black, inter.loc.white - inter.loc.black);
-        let near = (position - self.shading_at_mm).abs() <= SHADING_REUSE_MM;
-        if !force && near && self.shading_age < SHADING_REUSE_FRAMES {
+        if !force && !self.shading_due(position) {
             self.shading_age += 1;
             for (o, r) in self.white.iter_mut().zip(&self.white_rel) {
                 *o = lo + r * span;
@@ -1529,7 +1605,7 @@ impl EnhancedState {
         let q_amp = amp_ratio.clamp(0.0, 1.0);
         let q_edge = (1.0 - edge_std / (0.2 * cell)).clamp(0.0, 1.0);
         let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
-        let quality = (q_ncc * q_amp * q_edge * q_code).powf(0.25);
+        let quality = (q_ncc * q_amp * q_edge * q_code).sqrt().sqrt();
         if status == Status::Ok {
             self.last_k = Some(k);
         }
@@ -1577,18 +1653,19 @@ pub struct Silhouette {
     pub radius_px: f64,
 }
 
-/// The learnt centre line, seen from one frame's marker position.
+/// The learnt centre line, seen from one frame's marker position (worked out once per frame).
 struct CentreAt {
-    fit: CentreFit,
-    position_mm: f64,
-    reference_position_mm: f64,
+    /// The line's offset here relative to the reference pose, px.
+    offset_px: f64,
     radius_ratio: f64,
 }
 
 impl CentreAt {
     /// Offset across the calibrated line at marker `u`, px, relative to the reference pose.
-    fn offset(&self, u: f64) -> f64 {
-        self.fit.at(self.position_mm + u).0 - self.fit.at(self.reference_position_mm + u).0
+    /// The learnt centre is a line in `s`, so this is its slope times the marker's distance
+    /// from the reference, the same at every `u`.
+    fn offset(&self, _u: f64) -> f64 {
+        self.offset_px
     }
 }
 
