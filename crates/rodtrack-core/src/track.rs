@@ -61,6 +61,9 @@ pub struct RodResult {
     pub reason: &'static str,
     /// Diagnostics: phase amplitude over the expected one.
     pub amp_ratio: f64,
+    /// Diagnostics: the share of the stripes' variation across the rod (over bit space 0)
+    /// that their fundamental explains.
+    pub stripe_share: f64,
     /// Diagnostics: spread of the barcode's edges around their fit, mm.
     pub edge_std_mm: f64,
 }
@@ -114,6 +117,14 @@ const SHADING_REUSE_MM: f64 = 5.0;
 const SHADING_REUSE_FRAMES: u32 = 8;
 /// Phase samples per stripe period.
 const PHASE_SAMPLES_PER_PERIOD: usize = 8;
+/// The stripes' fundamental over a square wave's between the print's black and white, above
+/// which bit space 0 is not (only) the print: 1 at most for the print itself, with room for
+/// the error of the shading it is normalised by.
+const MAX_STRIPE_AMP_RATIO: f64 = 1.2;
+/// The least share of the stripes' variation across the rod that their fundamental must
+/// explain: 0.81 for sharp stripes (8/pi^2), more when blurred; below this, noise alone
+/// would have to be a third of the variation.
+const MIN_STRIPE_SHARE: f64 = 0.6;
 
 #[derive(Debug, Clone)]
 struct PaperState {
@@ -833,15 +844,7 @@ impl RodTracker {
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
         let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
         let (alpha, min_high_margin) = st.gray_code(m, frame, &inter, ph.mean);
-        st.judge(
-            m,
-            calib,
-            &inter,
-            alpha,
-            min_high_margin,
-            ph.phi,
-            ph.amp_ratio,
-        )
+        st.judge(m, calib, &inter, alpha, min_high_margin, &ph)
     }
 
     /// Touches the frame's cache lines that measuring this rod will read (enhanced mode, when
@@ -1538,11 +1541,16 @@ impl EnhancedState {
                     .unwrap_or(n_eps / 2);
             }
         }
-        let (mean, a, b, _) = fit(
-            &st.eps_tables[st.eps_best],
-            &st.eps_ginv[st.eps_best],
-            &st.phase_v,
-        );
+        let table = &st.eps_tables[st.eps_best];
+        let (mean, a, b, energy) = fit(table, &st.eps_ginv[st.eps_best], &st.phase_v);
+        // The variation beyond the constant, weighted as in the fit.
+        let (mut sw, mut swv, mut swvv) = (0.0f64, 0.0f64, 0.0f64);
+        for (&(w, _, _), &pv) in table.iter().zip(&st.phase_v) {
+            sw += w;
+            swv += w * pv;
+            swvv += w * pv * pv;
+        }
+        let variation = swvv - swv * swv / sw.max(1e-12);
         let phi = b.atan2(a);
         // Per row (phase_v sums the rows).
         let amplitude = (a * a + b * b).sqrt() / rows.len() as f64;
@@ -1551,12 +1559,16 @@ impl EnhancedState {
             // A square wave between 0 and 1 has a fundamental of amplitude 2/pi.
             amp_ratio: amplitude / (2.0 / std::f64::consts::PI),
             mean: mean / rows.len() as f64,
+            share: if variation > 1e-12 {
+                (energy / variation).clamp(0.0, 1.0)
+            } else {
+                0.0
+            },
         }
     }
 
     /// Step 6: fuses the phase with the Gray code, checks their consistency, and gives the
     /// status and quality.
-    #[allow(clippy::too_many_arguments)]
     fn judge(
         &mut self,
         m: &Marker,
@@ -1564,9 +1576,9 @@ impl EnhancedState {
         inter: &Intermediate,
         alpha: u32,
         min_high_margin: f64,
-        phi: f64,
-        amp_ratio: f64,
+        ph: &PhaseFit,
     ) -> RodResult {
+        let (phi, amp_ratio) = (ph.phi, ph.amp_ratio);
         let (ncc, k) = (inter.loc.ncc, inter.loc.k);
         let edge_std = inter.edges.edge_std_mm;
         let cell = m.cell_mm();
@@ -1588,6 +1600,19 @@ impl EnhancedState {
         if amp_ratio < 0.25 {
             status = Status::Occluded;
             reason = "weak stripes over bit space 0";
+        }
+        // What lies over bit space 0 must look like its stripes: a wave between the print's
+        // black and white, whose fundamental can be no stronger than a square wave's (ratio
+        // 1) and explains most of the variation across the rod (8/pi^2 = 0.81 for sharp
+        // stripes, more when blurred). A hand's edge, a glare spot or a shadow over part of it
+        // can still give a phase, and one that may agree with the Gray code by chance.
+        if amp_ratio > MAX_STRIPE_AMP_RATIO {
+            status = Status::Occluded;
+            reason = "stripes stronger than the print's over bit space 0";
+        }
+        if ph.share < MIN_STRIPE_SHARE {
+            status = Status::Occluded;
+            reason = "no stripe pattern over bit space 0";
         }
         if edge_std > 0.2 * cell {
             status = Status::Occluded;
@@ -1623,6 +1648,7 @@ impl EnhancedState {
             ncc,
             reason,
             amp_ratio,
+            stripe_share: ph.share,
             edge_std_mm: edge_std,
         }
     }
@@ -1638,6 +1664,9 @@ struct PhaseFit {
     /// The stripes' mean level over bit space 0, on the barcode's scale (its black 0, its
     /// white 1 at each point across the rod): 0.5 when bit space 0 is lit as the barcode is.
     mean: f64,
+    /// The share of the samples' variation (beyond their mean) that the fundamental explains:
+    /// 8/pi^2 = 0.81 for sharp stripes, more when blurred.
+    share: f64,
 }
 
 /// One ring's silhouette, for [`CentreFit::add_frame`].

@@ -157,7 +157,7 @@ fn main() {
             let mut f_out = std::fs::File::create(out).unwrap();
             writeln!(
                 f_out,
-                "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason,centre_px,ratio,eps"
+                "cam,rod,frame,visible,status,tpos,tang,pos,ang,err,theta,gray,amp,reason,centre_px,ratio,eps,share"
             )
             .unwrap();
             // Visible and ok: angle and position errors; not visible but ok: angle errors.
@@ -190,7 +190,7 @@ fn main() {
                         }
                         writeln!(
                             f_out,
-                            "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{},{centre_px:.4},{ratio:.4},{eps:.2}",
+                            "{cam},{},{f},{},{},{:.5},{:.6},{:.5},{:.6},{:.6},{:.5},{},{:.4},{},{centre_px:.4},{ratio:.4},{eps:.2},{:.4}",
                             tr.rod(),
                             t.visible as u8,
                             r.status,
@@ -206,7 +206,8 @@ fn main() {
                             r.theta_steps,
                             r.gray_step,
                             r.amp_ratio,
-                            r.reason
+                            r.reason,
+                            r.stripe_share
                         )
                         .unwrap();
                     }
