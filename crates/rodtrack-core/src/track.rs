@@ -843,8 +843,8 @@ impl RodTracker {
         st.inter = Some(inter);
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
         let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
-        let (alpha, min_high_margin) = st.gray_code(m, frame, &inter, ph.mean);
-        st.judge(m, calib, &inter, alpha, min_high_margin, &ph)
+        let gray = st.gray_code(m, frame, &inter, ph.mean);
+        st.judge(m, calib, &inter, &gray, &ph)
     }
 
     /// Touches the frame's cache lines that measuring this rod will read (enhanced mode, when
@@ -1321,8 +1321,8 @@ impl EnhancedState {
         }
     }
 
-    /// Step 4: the Gray bits at the centre of each bit space: (decoded step, smallest margin
-    /// of the high bits, in half contrasts).
+    /// Step 4: the Gray bits at the centre of each bit space: the decoded step and each bit's
+    /// margin.
     ///
     /// Each bit is read on the barcode's scale (its black 0, its white 1, with the print's
     /// shading across the rod) against a threshold that follows the light along the Gray
@@ -1337,7 +1337,7 @@ impl EnhancedState {
         frame: &FrameView,
         inter: &Intermediate,
         stripes_mean: f64,
-    ) -> (u32, f64) {
+    ) -> GrayRead {
         let position = inter.edges.position_mm;
         let bits = m.bits() as usize;
         // The shading at the facing line (the middle of the phase samples).
@@ -1379,7 +1379,7 @@ impl EnhancedState {
             None
         };
         let mut samples = [0.0f32; 8];
-        let mut min_high_margin = f64::MAX;
+        let mut margins = [0.0f64; 8];
         for (kb, s) in samples.iter_mut().enumerate().take(bits) {
             let c = m.bit_space_centre_mm(kb as u32);
             let off = match offq {
@@ -1389,12 +1389,10 @@ impl EnhancedState {
             // Outside the frame: read as the threshold, an ambiguous bit.
             let v = read(c, m.bit_space_mm(), &GRAY_SAMPLES).map_or(0.5, |v| v - off);
             *s = v as f32;
-            if kb >= 2 {
-                min_high_margin = min_high_margin.min((v - 0.5).abs() / 0.5);
-            }
+            margins[kb] = (v - 0.5).abs() / 0.5;
         }
         let (_, alpha) = decode_bits(&samples[..bits], 0.5);
-        (alpha, min_high_margin)
+        GrayRead { alpha, margins }
     }
 
     /// The shading of white and black print across the rod, from the barcode's runs (into
@@ -1574,10 +1572,10 @@ impl EnhancedState {
         m: &Marker,
         calib: &RodCalibration,
         inter: &Intermediate,
-        alpha: u32,
-        min_high_margin: f64,
+        gray: &GrayRead,
         ph: &PhaseFit,
     ) -> RodResult {
+        let alpha = gray.alpha;
         let (phi, amp_ratio) = (ph.phi, ph.amp_ratio);
         let (ncc, k) = (inter.loc.ncc, inter.loc.k);
         let edge_std = inter.edges.edge_std_mm;
@@ -1618,7 +1616,24 @@ impl EnhancedState {
             status = Status::Occluded;
             reason = "barcode edges inconsistent";
         }
-        if min_high_margin < 0.35 && !near_group_edge {
+        // Every high bit (those above the two the phase refines) must stand clear of the
+        // threshold, but for the one that changes where the phase puts the angle at the edge
+        // of a group of 4 steps: that one is legitimately half way there (the Gray code
+        // changes one bit at a time, so either reading is one step off at most, which the
+        // phase then settles). Glare or a shadow over the code leaves several high bits
+        // ambiguous at once, and then no reading is trusted.
+        let excused = if near_group_edge {
+            let group = ((theta / 4.0).round() as u32 * 4) % steps;
+            let before = (group + steps - 1) % steps;
+            (group ^ (group >> 1)) ^ (before ^ (before >> 1))
+        } else {
+            0
+        };
+        let min_high_margin = (2..m.bits() as usize)
+            .filter(|&k| excused & (1 << k) == 0)
+            .map(|k| gray.margins[k])
+            .fold(f64::MAX, f64::min);
+        if min_high_margin < 0.35 {
             status = Status::Occluded;
             reason = "a high Gray bit is ambiguous";
         }
@@ -1652,6 +1667,15 @@ impl EnhancedState {
             edge_std_mm: edge_std,
         }
     }
+}
+
+/// The Gray code step's result.
+#[derive(Debug, Clone, Copy)]
+struct GrayRead {
+    /// The decoded step.
+    alpha: u32,
+    /// Each bit's distance from the threshold, in half contrasts (bit space `k` at `k`).
+    margins: [f64; 8],
 }
 
 /// The phase step's result.
