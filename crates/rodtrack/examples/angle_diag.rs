@@ -6,10 +6,16 @@
 //! `cargo run --release --example angle_diag -- grid VARIATION NOISE(0|1) OUT.csv`
 //! `cargo run --release --example angle_diag -- profile NAME FRAMES CAM ROD FRAME`
 //! `cargo run --release --example angle_diag -- rings NAME FRAMES VARIATION CAM ROD FRAME`
+//! `cargo run --release --example angle_diag -- rings-travel NAME FRAMES VARIATION CAM RODS`
 //!
 //! `scenario` also prints a summary: the errors of the rows reported ok on visible markers,
 //! and the rows reported ok on hidden ones. `profile` prints the luma along one rod's marker
 //! and across it at each bit space; `rings` the rings' silhouettes against the true axis.
+//! `rings-travel` follows every ring row over a scenario (`RODS` comma-separated; `STRIDE`
+//! as for `scenario`, 2 by default): per row, white (the tracker's) and black (the barcode's
+//! black cells), the silhouette's centre minus the true axis (mean, std), its half width over
+//! the calibrated radius, and how that offset runs along the travel (slope, px per 100 mm),
+//! which is what the learnt centre line cannot tell from the axis.
 //! `grid` renders still states (every rod at a grid of positions and angles) and measures each
 //! with a fresh tracker (what the first frame after calibration gives).
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
@@ -374,6 +380,139 @@ fn main() {
                 println!("   across (-2R..2R): {l}");
             }
         }
+        "rings-travel" => rings_travel(&args),
         other => panic!("unknown mode {other}"),
+    }
+}
+
+/// Running sums of one ring row's silhouette offsets from the true axis against the axis
+/// coordinate `s`.
+#[derive(Default, Clone, Copy)]
+struct RowStats {
+    n: f64,
+    s: f64,
+    ss: f64,
+    d: f64,
+    dd: f64,
+    sd: f64,
+    ratio: f64,
+}
+
+impl RowStats {
+    fn add(&mut self, s_mm: f64, d_px: f64, ratio: f64) {
+        self.n += 1.0;
+        self.s += s_mm;
+        self.ss += s_mm * s_mm;
+        self.d += d_px;
+        self.dd += d_px * d_px;
+        self.sd += s_mm * d_px;
+        self.ratio += ratio;
+    }
+
+    /// (mean, std, mean ratio, slope per 100 mm).
+    fn summary(&self) -> (f64, f64, f64, f64) {
+        let n = self.n.max(1.0);
+        let (ms, md) = (self.s / n, self.d / n);
+        let var_s = (self.ss / n - ms * ms).max(1e-9);
+        let sd = (self.dd / n - md * md).max(0.0).sqrt();
+        (
+            md,
+            sd,
+            self.ratio / n,
+            100.0 * (self.sd / n - ms * md) / var_s,
+        )
+    }
+}
+
+/// Mode `rings-travel`: see the file's top.
+fn rings_travel(args: &[String]) {
+    use rodtrack_core::track::{ring_rows, ring_silhouette, ring_silhouette_scan, SilhouetteScan};
+    let (name, frames, variation, cam) = (
+        &args[2],
+        args[3].parse().unwrap(),
+        &args[4],
+        args[5].parse::<usize>().unwrap(),
+    );
+    let rods: Vec<u32> = args[6].split(',').map(|s| s.parse().unwrap()).collect();
+    let stride: usize = std::env::var("STRIDE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2);
+    let (mut sim, _, cals) = setup(name, frames, variation, true);
+    let m = Marker::v1();
+    let black_scan = SilhouetteScan {
+        bright: false,
+        step_px: 0.5,
+        min_contrast: 12.0,
+        from_radii: 0.75,
+        span_radii: 0.6,
+    };
+    let cell = m.cell_mm();
+    let rows: Vec<(f64, bool)> = ring_rows(&m)
+        .into_iter()
+        .map(|u| (u, true))
+        .chain(
+            m.kernel()
+                .iter()
+                .enumerate()
+                .filter(|(_, &black)| black)
+                .map(|(c, _)| (m.barcode_start_mm() + (c as f64 + 0.5) * cell, false)),
+        )
+        .collect();
+    // Per rod: per row, and the true axis against the calibrated line.
+    let mut stats = vec![vec![RowStats::default(); rows.len()]; rods.len()];
+    let mut axis = vec![RowStats::default(); rods.len()];
+    let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+    for f in (0..sim.frame_count()).step_by(stride.max(1)) {
+        let meta = sim.render(f, cam, &mut buf).unwrap();
+        let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+        let truth = sim.truth(f, cam).unwrap();
+        for (ir, &rod) in rods.iter().enumerate() {
+            let Some(t) = truth.iter().find(|t| t.m.rod == rod && t.visible) else {
+                continue;
+            };
+            let Some(c) = cals[cam].iter().find(|c| c.rod == rod) else {
+                continue;
+            };
+            let rc = sim.scene().rods[rod as usize].clone();
+            let pos = t.m.position_mm;
+            for (k, &(u, white)) in rows.iter().enumerate() {
+                let lp = c.knots.at(pos + u);
+                let Some(true_off) = sim
+                    .project_rod_axis(cam, rod as usize, rc.marker_y(u, pos))
+                    .unwrap()
+                    .map(|(x, y)| (x - lp.x) * -lp.ty + (y - lp.y) * lp.tx)
+                else {
+                    continue;
+                };
+                if white {
+                    axis[ir].add(pos + u, true_off, 1.0);
+                }
+                let sil = if white {
+                    ring_silhouette(&view, &lp)
+                } else {
+                    ring_silhouette_scan(&view, &lp, &black_scan)
+                };
+                // Far off: a hand or a figure, which the tracker's gates refuse.
+                if let Some((centre, hw)) = sil.filter(|s| (s.0 - true_off).abs() < 3.0) {
+                    stats[ir][k].add(pos + u, centre - true_off, hw / lp.radius_px);
+                }
+            }
+        }
+    }
+    for (ir, &rod) in rods.iter().enumerate() {
+        println!(
+            "camera {cam} rod {rod}: true axis off the calibrated line by {:+.3} px per 100 mm",
+            axis[ir].summary().3
+        );
+        for (k, &(u, white)) in rows.iter().enumerate() {
+            let (mean, sd, ratio, slope) = stats[ir][k].summary();
+            println!(
+                "  {} ring u {u:5.1} mm: {:4} frames, silhouette - axis {mean:+.3} px (std {sd:.3}), \
+                 half width / radius {ratio:.3}, along the travel {slope:+.3} px per 100 mm",
+                if white { "white" } else { "black" },
+                stats[ir][k].n
+            );
+        }
     }
 }
