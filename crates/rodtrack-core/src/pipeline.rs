@@ -62,7 +62,9 @@ impl CameraPipeline {
         timestamp_s: f64,
         out: &mut Vec<Measurement>,
     ) -> Result<(), CoreError> {
-        // Bring every rod's region of the new frame into the cache at once (the reads overlap).
+        // Ask for every rod's strips of the new frame at once: the reads overlap with each
+        // other and with the measuring (asking a rod or two ahead of the one measured instead
+        // measured the same here).
         let mut touched = 0u8;
         for tr in &self.rods {
             touched ^= tr.prefetch(frame);
