@@ -195,8 +195,10 @@ struct EnhancedState {
     black_rel: Vec<f64>,
     shading_at_mm: f64,
     shading_age: u32,
-    /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame.
+    /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame,
+    /// and their mean.
     ring_u: Vec<f64>,
+    ring_u_mid: f64,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
     centre: CentreFit,
     /// Frames processed (for decimating the learning).
@@ -646,6 +648,7 @@ impl RodTracker {
         let ring_u = ring_rows(marker);
         EnhancedState {
             last_k: None,
+            ring_u_mid: ring_u.iter().sum::<f64>() / ring_u.len().max(1) as f64,
             ring_u,
             centre: CentreFit::default(),
             frames_seen: 0,
@@ -847,13 +850,13 @@ impl RodTracker {
         st.judge(m, calib, &inter, &gray, &ph)
     }
 
-    /// Touches the frame's cache lines that measuring this rod will read (enhanced mode, when
+    /// Asks for the frame's cache lines that measuring this rod will read (enhanced mode, when
     /// the last frame found it), where the marker is expected: a narrow strip along the line
     /// for the barcode's correlation and edges and the Gray bits, the full width across the
     /// rod over bit space 0's phase rows, and the shading's and the rings' rows on the frames
     /// that measure them; see [`FrameView::touch_rect`]. Call it for every rod of a frame
     /// before measuring any: the misses then overlap instead of stalling each read in turn.
-    /// Returns a mix of the bytes read.
+    /// Returns a mix of bytes of the strips (to keep the work from being optimised away).
     pub fn prefetch(&self, frame: &FrameView) -> u8 {
         let st = &self.enhanced;
         let (Mode::Enhanced, Some(p)) = (self.mode, st.predicted_mm) else {
@@ -1227,9 +1230,8 @@ impl EnhancedState {
     /// been yet, the line is extrapolated and every frame adds to it until it is learnt there
     /// too.
     fn learns_centre(&self, position_mm: f64, frame_no: u64) -> bool {
-        let u_mid = self.ring_u.iter().sum::<f64>() / self.ring_u.len().max(1) as f64;
         let every = match self.centre.samples() {
-            _ if !self.centre.covers(position_mm + u_mid) => 1,
+            _ if !self.centre.covers(position_mm + self.ring_u_mid) => 1,
             n if n < 60.0 => 1,
             n if n < 600.0 => 4,
             _ => 16,
@@ -1244,9 +1246,9 @@ impl EnhancedState {
         !(near && self.shading_age < SHADING_REUSE_FRAMES)
     }
 
-    /// Touches the frame's cache lines over the marker's stretch `a_mm..b_mm` of the line,
-    /// `radii` radii to either side, and `footprint_px` beyond all round, in pieces short enough that each
-    /// one's bounding box stays close to the strip however the line runs in the image.
+    /// Asks for the frame's cache lines over the stretch `a_mm..b_mm` of the line, `radii`
+    /// radii to either side and `footprint_px` beyond all round, in pieces short enough that
+    /// each one's bounding box stays close to the strip however the line runs in the image.
     fn touch_strip(
         &self,
         frame: &FrameView,
@@ -1428,7 +1430,7 @@ impl EnhancedState {
             out.iter_mut().for_each(|v| *v = 0.0);
             for &u in rows_u.iter() {
                 let lp = self.knots.at(position + u);
-                let (e, r) = (ca.offset(u), lp.radius_px * ca.radius_ratio);
+                let (e, r) = (ca.offset_px, lp.radius_px * ca.radius_ratio);
                 for (o, &(_, _, sin_d)) in out.iter_mut().zip(&self.phase_delta) {
                     let (x, y) = lp.offset(0.0, e + r * sin_d);
                     *o += frame.luma_bilinear(x as f32, y as f32) as f64;
@@ -1482,7 +1484,7 @@ impl EnhancedState {
         for r in rows {
             let u = c0 + r * m.bit_space_mm();
             let lp: LinePoint = st.knots.at(position + u);
-            let (e, rad) = (ca.offset(u), lp.radius_px * ca.radius_ratio);
+            let (e, rad) = (ca.offset_px, lp.radius_px * ca.radius_ratio);
             let (xb, yb) = lp.offset(0.0, e);
             let (xb, yb) = (xb as f32, yb as f32);
             let (sx, sy) = ((-lp.ty * rad) as f32, (lp.tx * rad) as f32);
@@ -1623,9 +1625,7 @@ impl EnhancedState {
         // phase then settles). Glare or a shadow over the code leaves several high bits
         // ambiguous at once, and then no reading is trusted.
         let excused = if near_group_edge {
-            let group = ((theta / 4.0).round() as u32 * 4) % steps;
-            let before = (group + steps - 1) % steps;
-            (group ^ (group >> 1)) ^ (before ^ (before >> 1))
+            group_edge_bit(theta, steps)
         } else {
             0
         };
@@ -1708,18 +1708,12 @@ pub struct Silhouette {
 
 /// The learnt centre line, seen from one frame's marker position (worked out once per frame).
 struct CentreAt {
-    /// The line's offset here relative to the reference pose, px.
+    /// The offset across the calibrated line relative to the reference pose, px. The learnt
+    /// centre is a line in `s`, so this is its slope times the marker's distance from the
+    /// reference: the same at every row of the marker.
     offset_px: f64,
+    /// The learnt half width over the calibrated radius at bit space 0.
     radius_ratio: f64,
-}
-
-impl CentreAt {
-    /// Offset across the calibrated line at marker `u`, px, relative to the reference pose.
-    /// The learnt centre is a line in `s`, so this is its slope times the marker's distance
-    /// from the reference, the same at every `u`.
-    fn offset(&self, _u: f64) -> f64 {
-        self.offset_px
-    }
 }
 
 /// Samples the coarse line over candidates `lo..=hi` (and the kernel's length beyond) and
@@ -1889,6 +1883,15 @@ pub fn ring_silhouette_scan(
     Some((0.5 * (edge[0] + edge[1]), 0.5 * (edge[1] - edge[0])))
 }
 
+/// The Gray code's bit (as a mask) that changes at the edge between groups of 4 steps nearest
+/// to `theta` (in steps, `[0, steps)`): the one bit in which the codes of the steps either
+/// side of that edge differ.
+fn group_edge_bit(theta: f64, steps: u32) -> u32 {
+    let group = ((theta / 4.0).round() as u32 * 4) % steps;
+    let before = (group + steps - 1) % steps;
+    (group ^ (group >> 1)) ^ (before ^ (before >> 1))
+}
+
 /// Fuses a phase fraction `frac4` in `[0, 4)` (position inside a group of 4 Gray steps) with
 /// the decoded step `alpha`, by the paper's steps 2-4. Returns `[0, steps)`.
 pub fn fuse_steps(frac4: f64, alpha: u32, steps: u32) -> f64 {
@@ -1924,4 +1927,33 @@ fn normal_inverse(table: &[(f64, f64, f64)]) -> [[f64; 3]; 3] {
         }
     }
     inv
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::marker::gray_decode;
+
+    /// At every edge between groups of 4 steps, from either side, the excused bit is a single
+    /// high bit (the two low bits are the phase's), and reading it the other way decodes the
+    /// step on the other side of the edge: one step off, never a group.
+    #[test]
+    fn the_group_edge_bit_is_the_one_high_bit_that_changes_there() {
+        for bits in [3u32, 5, 6] {
+            let steps = 1u32 << bits;
+            for g in 0..steps / 4 {
+                let edge = 4 * g;
+                for theta in [
+                    edge as f64 + 0.3,
+                    (edge as f64 - 0.3).rem_euclid(steps as f64),
+                ] {
+                    let mask = group_edge_bit(theta, steps);
+                    assert_eq!(mask.count_ones(), 1, "bits {bits} edge {edge}");
+                    assert!(mask >= 4, "a high bit: {mask:#b} at edge {edge}");
+                    let code = edge ^ (edge >> 1);
+                    assert_eq!(gray_decode(code ^ mask), (edge + steps - 1) % steps);
+                }
+            }
+        }
+    }
 }
