@@ -103,7 +103,7 @@ const GRAY_SAMPLES: [(f64, f64); 5] = [
     (0.0, 0.15),
 ];
 /// Most rings whose silhouettes one frame adds to the learnt centre line.
-const MAX_RINGS: usize = 32;
+pub const MAX_RINGS: usize = 32;
 /// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
 /// bits' threshold, mm.
 /// Where the quiet zone is read, around its middle: (along the rod in quiet-zone lengths,
@@ -195,9 +195,9 @@ struct EnhancedState {
     black_rel: Vec<f64>,
     shading_at_mm: f64,
     shading_age: u32,
-    /// Marker `u` of white rings whose silhouette gives the rod's centre and radius each frame,
-    /// and their mean.
-    ring_u: Vec<f64>,
+    /// Marker `u` of the full rings whose silhouettes give the rod's centre and radius, white
+    /// (`true`) or black, and their mean `u`.
+    ring_u: Vec<(f64, bool)>,
     ring_u_mid: f64,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
     centre: CentreFit,
@@ -337,28 +337,39 @@ impl ScaleFit {
     }
 }
 
-/// A least-squares line `offset(s) = a + b s` (px across the calibrated line, as a function of
-/// the axis coordinate in mm), and the mean radius ratio, accumulated over frames. The rod's
-/// axis does not move in the image, so every frame's silhouette adds to the same line: its
-/// noise averages out while the marker travels, and no single frame's noise reaches the phase.
+/// The rod's centre line `offset(s) = a + b s` (px across the calibrated line, as a function
+/// of the axis coordinate in mm), and its apparent radius, learnt from the silhouettes of the
+/// marker's full rings over frames. The rod's axis does not move in the image, so every frame's
+/// silhouettes add to the same line: their noise averages out while the marker travels, and no
+/// single frame's noise reaches the phase.
+///
+/// Each ring is a witness of its own: a ring's silhouette carries a bias that the marker takes
+/// along (the print's shading fades a white ring's edges into a dark limb on one side more
+/// than on the other; a black ring's neighbours in the print blur into it), so each ring gets
+/// its own line, and only how the offsets run along the travel, the slope, is shared. Where
+/// something beside the rod (a figure's shadow or legs at some angles, a lamp's reflection)
+/// bends one ring's offsets as the marker travels, the other rings do not follow it: the slope
+/// is the median of the rings' slopes.
 ///
 /// A silhouette is only as good as the background beside the rod: something bright next to
 /// one side (a figure, the table's wall, a reflection) moves that edge alone, and a gate on
 /// the centre lets such samples in and drag the line away little by little. Such a sample
-/// shows as a half width off the learnt radius (by half the edge's move), whereas a place
+/// shows as a half width off the ring's learnt one (by half the edge's move), whereas a place
 /// where the line itself runs elsewhere (not learnt yet) moves both edges alike and keeps the
-/// half width. So the half width must agree with the learnt radius within a few times its own
+/// half width. So the half width must agree with the ring's within a few times its own
 /// scatter (learnt from the accepted samples).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CentreFit {
-    line: LineFit,
-    /// The half width over the calibrated radius, also as a line in `s` (the calibrated
-    /// radius may run off the apparent one along the travel).
+    rings: [RingFit; MAX_RINGS],
+    /// The half width over the calibrated radius, as a line in `s` (the calibrated radius may
+    /// run off the apparent one along the travel), over every ring's accepted samples.
     ratio: LineFit,
-    /// Sum of the accepted samples' squared half-width deviations, px^2, and their count
-    /// (forgotten as the line's samples are).
-    width_dev2: f64,
-    width_n: f64,
+    /// The shared slope (median of the rings'), px per mm, and the pooled offset at `s = 0`,
+    /// worked out after each frame that adds samples.
+    slope: f64,
+    intercept_px: f64,
+    /// Frames that added at least one silhouette.
+    frames: f64,
     /// The span of the axis covered by accepted samples, mm.
     s_lo: f64,
     s_hi: f64,
@@ -366,14 +377,54 @@ pub struct CentreFit {
     refused_frames: u32,
 }
 
+/// One ring's silhouettes over frames: its centre offset and half width as lines in `s`, and
+/// the scatter of its half width.
+#[derive(Debug, Clone, Copy, Default)]
+struct RingFit {
+    /// A white ring (else black), and the sum of its accepted samples' contrast with the
+    /// background (forgotten as the line's samples are), DN.
+    white: bool,
+    contrast: f64,
+    line: LineFit,
+    ratio: LineFit,
+    /// Sum of the accepted samples' squared half-width deviations, px^2, and their count
+    /// (forgotten as the line's samples are).
+    width_dev2: f64,
+    width_n: f64,
+}
+
+impl RingFit {
+    /// Samples after which the ring's own offset and half width gate its new samples.
+    const OWN_AFTER: f64 = 3.0;
+
+    fn mean_s_v(&self) -> Option<(f64, f64)> {
+        (self.line.n >= 1.0).then(|| (self.line.s / self.line.n, self.line.v / self.line.n))
+    }
+}
+
 impl CentreFit {
     /// The fitted offset at `s` and the radius ratio; (0, 1) before any sample.
     pub fn at(&self, s_mm: f64) -> (f64, f64) {
-        if self.line.n < 1.0 {
+        if self.frames < 1.0 {
             return (0.0, 1.0);
         }
-        (self.line.value(s_mm), self.ratio.value(s_mm))
+        (
+            self.intercept_px + self.slope * s_mm,
+            self.ratio.value(s_mm),
+        )
     }
+
+    /// The line's slope, px per mm: how far the centre runs across the calibrated line per mm
+    /// along the axis.
+    pub fn slope(&self) -> f64 {
+        self.slope
+    }
+
+    /// Rings with lines of their own that a frame needs for its consensus gate, the gate in
+    /// median absolute deviations of the rings' offsets from their lines, and its floor, px.
+    const CONSENSUS_RINGS: usize = 5;
+    const CONSENSUS_MADS: f64 = 4.0;
+    const CONSENSUS_MIN_PX: f64 = 0.1;
 
     /// Samples before the half width's scatter gates new ones.
     const WIDTH_GATE_AFTER: f64 = 20.0;
@@ -381,11 +432,14 @@ impl CentreFit {
     const WIDTH_GATE_SIGMAS: f64 = 4.0;
     const WIDTH_GATE_MIN_PX: f64 = 0.15;
 
-    /// Adds one silhouette sample (centre offset, half width over the calibrated radius
-    /// `radius_px`); refuses one far from the current fit (hands, figures, a bright
+    /// Adds one silhouette sample of ring 0 (centre offset, half width over the calibrated
+    /// radius `radius_px`); refuses one far from the current fit (hands, figures, a bright
     /// background on one side).
     pub fn add(&mut self, s_mm: f64, offset_px: f64, ratio: f64, radius_px: f64) -> bool {
         self.add_frame(&[Silhouette {
+            ring: 0,
+            white: true,
+            contrast_dn: 100.0,
             s_mm,
             offset_px,
             ratio,
@@ -393,39 +447,87 @@ impl CentreFit {
         }]) > 0
     }
 
-    /// Adds one frame's silhouettes (one per ring) as one sample: their mean place, offset
-    /// and ratio over those the gates let in. The line's slope then comes from where the
-    /// marker was over frames, never from the spread of the rings along one marker (each
-    /// ring's silhouette has a small bias of its own, from its neighbours in the print, that
-    /// a slope over the marker's 30 mm would carry far along the travel). Returns how many
-    /// were let in.
+    /// Adds one frame's silhouettes (at most one per ring), each to its ring, over those the
+    /// gates let in. The slope then comes from where each ring was over frames, never from the
+    /// spread of the rings along one marker (each ring's own bias would make a slope over the
+    /// marker's 30 mm, carried far along the travel). Returns how many were let in.
     pub fn add_frame(&mut self, rings: &[Silhouette]) -> usize {
-        let (mut n, mut sum_s, mut sum_c, mut sum_r) = (0usize, 0.0, 0.0, 0.0);
-        let (mut dev2, mut n_dev) = (0.0, 0.0);
-        for r in rings {
-            let Ok(dev) = self.gate(r) else {
+        // The gates of each ring on its own, then the frame's consensus: every ring of one
+        // frame sees the same axis, so a ring whose offset from its own line stands out from
+        // the other rings' is disturbed by something beside it in this frame.
+        let mut dev = [None; MAX_RINGS];
+        let mut pass = [false; MAX_RINGS];
+        let mut resid = [0.0f64; MAX_RINGS];
+        let mut own = [false; MAX_RINGS];
+        let mut n_own = 0;
+        for (i, r) in rings.iter().enumerate().take(MAX_RINGS) {
+            if r.ring >= MAX_RINGS {
+                continue;
+            }
+            let Ok(d) = self.gate(r) else {
                 continue;
             };
-            if let Some(d) = dev {
-                dev2 += d * d;
-                n_dev += 1.0;
+            pass[i] = true;
+            dev[i] = d;
+            let ring = &self.rings[r.ring];
+            if let Some((ms, mv)) = ring
+                .mean_s_v()
+                .filter(|_| ring.line.n >= RingFit::OWN_AFTER)
+            {
+                resid[i] = r.offset_px - (mv + self.slope * (r.s_mm - ms));
+                own[i] = true;
+                n_own += 1;
             }
-            if self.line.n < 1.0 && n == 0 {
+        }
+        if n_own >= Self::CONSENSUS_RINGS {
+            let mut sorted = [0.0f64; MAX_RINGS];
+            let mut k = 0;
+            for (i, &o) in own.iter().enumerate() {
+                if o {
+                    sorted[k] = resid[i];
+                    k += 1;
+                }
+            }
+            let (mid, spread) = median_and_mad(&mut sorted[..k]);
+            let limit = (Self::CONSENSUS_MADS * spread).max(Self::CONSENSUS_MIN_PX);
+            for i in 0..MAX_RINGS {
+                if own[i] && (resid[i] - mid).abs() > limit {
+                    pass[i] = false;
+                }
+            }
+        }
+        let (mut n, mut sum_s, mut sum_r) = (0usize, 0.0, 0.0);
+        for (i, r) in rings.iter().enumerate().take(MAX_RINGS) {
+            if !pass[i] {
+                continue;
+            }
+            let dev = dev[i];
+            if self.frames < 1.0 && n == 0 {
                 (self.s_lo, self.s_hi) = (r.s_mm, r.s_mm);
             } else {
                 self.s_lo = self.s_lo.min(r.s_mm);
                 self.s_hi = self.s_hi.max(r.s_mm);
             }
+            let ring = &mut self.rings[r.ring];
+            let k = ring.line.add(r.s_mm, r.offset_px);
+            ring.ratio.add(r.s_mm, r.ratio);
+            ring.white = r.white;
+            ring.contrast = ring.contrast * k + r.contrast_dn;
+            ring.width_dev2 *= k;
+            ring.width_n *= k;
+            if let Some(d) = dev {
+                ring.width_dev2 += d * d;
+                ring.width_n += 1.0;
+            }
             n += 1;
             sum_s += r.s_mm;
-            sum_c += r.offset_px;
             sum_r += r.ratio;
         }
         if n == 0 {
             // Where every silhouette is refused (a hand, a bright background), the place
             // counts as covered after a while: looking again every frame is of no use there.
             self.refused_frames += 1;
-            if self.refused_frames >= Self::REFUSED_FRAMES_COVER && self.line.n >= 1.0 {
+            if self.refused_frames >= Self::REFUSED_FRAMES_COVER && self.frames >= 1.0 {
                 for r in rings {
                     self.s_lo = self.s_lo.min(r.s_mm);
                     self.s_hi = self.s_hi.max(r.s_mm);
@@ -435,37 +537,89 @@ impl CentreFit {
         }
         self.refused_frames = 0;
         let inv = 1.0 / n as f64;
-        let k = self.line.add(sum_s * inv, sum_c * inv);
         self.ratio.add(sum_s * inv, sum_r * inv);
-        self.width_dev2 = self.width_dev2 * k + dev2;
-        self.width_n = self.width_n * k + n_dev;
+        self.frames = (self.frames + 1.0).min(LineFit::MAX_N);
+        self.refit();
         n
     }
 
+    /// The shared slope (the median of the rings' own slopes, over the rings whose samples
+    /// spread far enough along the axis to have one; 0 before any has) and the pooled
+    /// offset.
+    fn refit(&mut self) {
+        // The witnesses: the rings of the polarity that stands out more from the background
+        // (its edges are the least moved by noise and by what lies beside the rod), when at
+        // least 3 of them have slopes; else every ring with one.
+        let contrast = |white: bool| {
+            let (sum, n) = self
+                .rings
+                .iter()
+                .filter(|r| r.white == white && r.line.n >= 1.0)
+                .fold((0.0, 0.0), |a, r| (a.0 + r.contrast, a.1 + r.line.n));
+            sum / n.max(1e-12)
+        };
+        let white = contrast(true) >= contrast(false);
+        let mut slopes = [0.0f64; MAX_RINGS];
+        let mut n = 0;
+        for pass in [true, false] {
+            for r in &self.rings {
+                if pass && r.white != white {
+                    continue;
+                }
+                if let Some((_, b, _)) = r.line.coeffs().filter(|c| c.1 != 0.0) {
+                    slopes[n] = b;
+                    n += 1;
+                }
+            }
+            if n >= 3 || !pass {
+                break;
+            }
+            n = 0;
+        }
+        self.slope = median_and_mad(&mut slopes[..n]).0;
+        let (mut sum_a, mut sum_w) = (0.0, 0.0);
+        for r in &self.rings {
+            if let Some((ms, mv)) = r.mean_s_v() {
+                sum_a += r.line.n * (mv - self.slope * ms);
+                sum_w += r.line.n;
+            }
+        }
+        self.intercept_px = sum_a / sum_w.max(1e-12);
+    }
+
     /// The gates: `Err` refuses the silhouette; `Ok` gives its half width's deviation from
-    /// the learnt radius, px, once there is a fit to compare with.
+    /// the ring's learnt one, px, once there is a fit to compare with.
     fn gate(&self, r: &Silhouette) -> Result<Option<f64>, ()> {
-        if self.line.n < 5.0 {
+        if self.frames < 5.0 {
             let plausible = r.offset_px.abs() <= 3.0 && (r.ratio - 1.0).abs() <= 0.3;
             return if plausible { Ok(None) } else { Err(()) };
         }
-        let (e, ratio) = self.at(r.s_mm);
+        let ring = &self.rings[r.ring];
+        // The ring's own place and width once it has a few samples (rings differ by their
+        // biases), else the pooled ones.
+        let (e, ratio) = match ring.mean_s_v() {
+            Some((ms, mv)) if ring.line.n >= RingFit::OWN_AFTER => (
+                mv + self.slope * (r.s_mm - ms),
+                ring.ratio.v / ring.ratio.n.max(1e-12),
+            ),
+            _ => self.at(r.s_mm),
+        };
         if (r.offset_px - e).abs() > 0.75 || (r.ratio - ratio).abs() > 0.1 {
             return Err(());
         }
         let d = (r.ratio - ratio) * r.radius_px;
-        if self.width_n >= Self::WIDTH_GATE_AFTER {
-            let sigma = (self.width_dev2 / self.width_n).sqrt();
+        if ring.width_n >= Self::WIDTH_GATE_AFTER {
+            let sigma = (ring.width_dev2 / ring.width_n).sqrt();
             if d.abs() > (Self::WIDTH_GATE_SIGMAS * sigma).max(Self::WIDTH_GATE_MIN_PX) {
                 return Err(());
             }
         }
-        Ok(Some(d))
+        Ok((ring.line.n >= RingFit::OWN_AFTER).then_some(d))
     }
 
-    /// Number of samples in the fit.
+    /// Number of frames that added to the fit.
     pub fn samples(&self) -> f64 {
-        self.line.n
+        self.frames
     }
 
     /// Frames in a row with every silhouette refused, after which their place counts as
@@ -476,7 +630,7 @@ impl CentreFit {
 
     /// True when samples were taken at or near `s_mm` (the line is not extrapolated there).
     pub fn covers(&self, s_mm: f64) -> bool {
-        self.line.n >= 1.0
+        self.frames >= 1.0
             && s_mm >= self.s_lo - Self::COVER_MARGIN_MM
             && s_mm <= self.s_hi + Self::COVER_MARGIN_MM
     }
@@ -645,10 +799,10 @@ impl RodTracker {
             }
         };
         let n_phase = count;
-        let ring_u = ring_rows(marker);
+        let ring_u = silhouette_rings(marker);
         EnhancedState {
             last_k: None,
-            ring_u_mid: ring_u.iter().sum::<f64>() / ring_u.len().max(1) as f64,
+            ring_u_mid: ring_u.iter().map(|r| r.0).sum::<f64>() / ring_u.len().max(1) as f64,
             ring_u,
             centre: CentreFit::default(),
             frames_seen: 0,
@@ -889,7 +1043,7 @@ impl RodTracker {
             }
         }
         if st.learns_centre(p, st.frames_seen.wrapping_add(1)) {
-            for &u in &st.ring_u {
+            for &(u, _) in &st.ring_u {
                 touch(u - 1.0, u + 1.0, 1.5);
             }
         }
@@ -1296,10 +1450,19 @@ impl EnhancedState {
     fn learn_centre(&mut self, frame: &FrameView, position_mm: f64) {
         let mut rings = [Silhouette::default(); MAX_RINGS];
         let mut n = 0;
-        for &u in self.ring_u.iter().take(MAX_RINGS) {
+        for (ring, &(u, white)) in self.ring_u.iter().take(MAX_RINGS).enumerate() {
             let lp = self.knots.at(position_mm + u);
-            if let Some((c, hw)) = ring_silhouette(frame, &lp) {
+            let scan = if white {
+                &WHITE_RING_SCAN
+            } else {
+                &BLACK_RING_SCAN
+            };
+            if let Some(sil) = ring_silhouette_measure(frame, &lp, scan) {
+                let (c, hw) = (sil.centre_px, sil.half_width_px);
                 rings[n] = Silhouette {
+                    ring,
+                    white,
+                    contrast_dn: sil.contrast_dn,
                     s_mm: position_mm + u,
                     offset_px: c,
                     ratio: hw / lp.radius_px,
@@ -1696,6 +1859,12 @@ struct PhaseFit {
 /// One ring's silhouette, for [`CentreFit::add_frame`].
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Silhouette {
+    /// Which of the marker's rings (an index below [`MAX_RINGS`], the same ring every frame).
+    pub ring: usize,
+    /// A white ring (else black).
+    pub white: bool,
+    /// Its contrast with the background (the lesser of the two sides), DN.
+    pub contrast_dn: f64,
     /// Axis coordinate of the ring, mm on the calibrated line.
     pub s_mm: f64,
     /// Centre offset across the calibrated line, px.
@@ -1797,22 +1966,70 @@ pub fn ring_rows(marker: &Marker) -> Vec<f64> {
     rows
 }
 
+/// The median of `v` and its median absolute deviation scaled to a normal distribution's
+/// standard deviation (1.4826 MAD); `v` is reordered. (0, 0) for an empty slice.
+fn median_and_mad(v: &mut [f64]) -> (f64, f64) {
+    let median = |v: &mut [f64]| {
+        let n = v.len();
+        v.sort_unstable_by(f64::total_cmp);
+        match n {
+            0 => 0.0,
+            _ if n % 2 == 1 => v[n / 2],
+            _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    };
+    let mid = median(v);
+    for x in v.iter_mut() {
+        *x = (*x - mid).abs();
+    }
+    (mid, 1.4826 * median(v))
+}
+
+/// Marker `u` of the full rings whose silhouettes the tracker learns the rod's centre line
+/// from, and whether each is white: the middle of every barcode cell, and of the gap before
+/// the Gray code when there is one (white). Each is a witness of its own (see [`CentreFit`]):
+/// the more there are, the fewer of them something beside the rod can sway.
+pub fn silhouette_rings(marker: &Marker) -> Vec<(f64, bool)> {
+    let cell = marker.cell_mm();
+    let bc0 = marker.barcode_start_mm();
+    let mut rows: Vec<(f64, bool)> = marker
+        .kernel()
+        .iter()
+        .enumerate()
+        .map(|(c, &black)| (bc0 + (c as f64 + 0.5) * cell, !black))
+        .collect();
+    let gap0 = bc0 + marker.barcode_len_mm();
+    let gap = marker.gray_start_mm() - gap0;
+    if gap >= 2.0 {
+        rows.push((gap0 + 0.5 * gap, true));
+    }
+    rows.truncate(MAX_RINGS);
+    rows
+}
+
+/// The tracker's fast scan for a white ring's silhouette: 0.5 px steps over 0.75 R .. 1.35 R.
+const WHITE_RING_SCAN: SilhouetteScan = SilhouetteScan {
+    bright: true,
+    step_px: 0.5,
+    min_contrast: 20.0,
+    from_radii: 0.75,
+    span_radii: 0.6,
+};
+
+/// The same for a black ring (the least contrast with the background is lower: black ink is
+/// further from a mid-grey background's noise than the shaded white print's limb).
+const BLACK_RING_SCAN: SilhouetteScan = SilhouetteScan {
+    bright: false,
+    min_contrast: 12.0,
+    ..WHITE_RING_SCAN
+};
+
 /// The silhouette of a white ring across the rod at `lp`: (centre offset along the normal,
 /// half width), px. Each edge is where the profile crosses halfway between the print inside
 /// and the background outside; `None` when the ring does not stand out from the background.
 /// The tracker's fast scan: 0.5 px steps over 0.75 R .. 1.35 R.
 pub fn ring_silhouette(frame: &FrameView, lp: &LinePoint) -> Option<(f64, f64)> {
-    ring_silhouette_scan(
-        frame,
-        lp,
-        &SilhouetteScan {
-            bright: true,
-            step_px: 0.5,
-            min_contrast: 20.0,
-            from_radii: 0.75,
-            span_radii: 0.6,
-        },
-    )
+    ring_silhouette_scan(frame, lp, &WHITE_RING_SCAN)
 }
 
 /// How [`ring_silhouette_scan`] looks for a ring's edges.
@@ -1838,6 +2055,26 @@ pub fn ring_silhouette_scan(
     lp: &LinePoint,
     scan: &SilhouetteScan,
 ) -> Option<(f64, f64)> {
+    ring_silhouette_measure(frame, lp, scan).map(|m| (m.centre_px, m.half_width_px))
+}
+
+/// A ring's silhouette across the rod, from [`ring_silhouette_measure`].
+#[derive(Debug, Clone, Copy)]
+pub struct RingSilhouette {
+    /// Centre offset along the normal, px.
+    pub centre_px: f64,
+    /// Half width, px.
+    pub half_width_px: f64,
+    /// The print's contrast with the background, the lesser of the two sides, DN.
+    pub contrast_dn: f64,
+}
+
+/// [`ring_silhouette_scan`], with the ring's contrast with the background.
+pub fn ring_silhouette_measure(
+    frame: &FrameView,
+    lp: &LinePoint,
+    scan: &SilhouetteScan,
+) -> Option<RingSilhouette> {
     let r = lp.radius_px;
     let step = scan.step_px;
     let sign = if scan.bright { 1.0 } else { -1.0 };
@@ -1846,6 +2083,7 @@ pub fn ring_silhouette_scan(
         sign * frame.luma_bilinear(px as f32, py as f32) as f64
     };
     let mut edge = [0.0f64; 2];
+    let mut contrast = f64::MAX;
     for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
         let x_out = side * 1.5 * r;
         if !frame.contains(
@@ -1860,6 +2098,7 @@ pub fn ring_silhouette_scan(
         if inside - outside < scan.min_contrast {
             return None;
         }
+        contrast = contrast.min(inside - outside);
         let level = 0.5 * (inside + outside);
         let x_from = side * scan.from_radii * r;
         let n = ((scan.span_radii * r) / step) as usize;
@@ -1880,7 +2119,11 @@ pub fn ring_silhouette_scan(
         }
         edge[k] = found?;
     }
-    Some((0.5 * (edge[0] + edge[1]), 0.5 * (edge[1] - edge[0])))
+    Some(RingSilhouette {
+        centre_px: 0.5 * (edge[0] + edge[1]),
+        half_width_px: 0.5 * (edge[1] - edge[0]),
+        contrast_dn: contrast,
+    })
 }
 
 /// The Gray code's bit (as a mask) that changes at the edge between groups of 4 steps nearest

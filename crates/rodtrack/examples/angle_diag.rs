@@ -68,6 +68,21 @@ fn setup(
         .with_seed(seed);
     let mut all = Vec::new();
     let mut cals = Vec::new();
+    // A calibration file (e.g. from `rodtrack calibrate --auto`) instead of calibrating here.
+    if let Ok(path) = std::env::var("CALIB") {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let file: rodtrack_core::calib::CalibrationFile = toml::from_str(&text).unwrap();
+        for c in &file.cameras {
+            let trs = c
+                .rods
+                .iter()
+                .map(|r| RodTracker::new(r, c.image_width, c.image_height, Mode::Enhanced).unwrap())
+                .collect();
+            all.push(trs);
+            cals.push(c.rods.clone());
+        }
+        return (sim, all, cals);
+    }
     for cam in 0..sim.cameras().len() {
         let inputs = sim.calibration_inputs(cam, seed).unwrap();
         let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
@@ -181,6 +196,11 @@ fn main() {
                             .unwrap();
                     let truth = sim.truth(f, cam).unwrap();
                     for tr in trs.iter_mut() {
+                        if let Ok(o) = std::env::var("ONLY") {
+                            if o != format!("{cam}:{}", tr.rod()) {
+                                continue;
+                            }
+                        }
                         let r = tr.process(&view).unwrap();
                         let t = truth.iter().find(|t| t.m.rod == tr.rod()).unwrap();
                         let (centre_px, ratio, eps) = tr.learnt(r.position_mm + 75.0);
@@ -217,6 +237,33 @@ fn main() {
                         )
                         .unwrap();
                     }
+                }
+            }
+            // Per rod: the learnt centre line's slope against the true axis' across the
+            // calibrated line, over the travel at bit space 0.
+            for (cam, trs) in trackers.iter().enumerate() {
+                for tr in trs {
+                    let rc = sim.scene().rods[tr.rod() as usize].clone();
+                    let h = rc.half_travel_mm();
+                    let u = Marker::v1().bit_space_centre_mm(0);
+                    let mut learnt = [0.0; 2];
+                    let mut truth = [0.0; 2];
+                    for (k, pos) in [-0.9 * h, 0.9 * h].into_iter().enumerate() {
+                        learnt[k] = tr.learnt(pos + u).0;
+                        let lp = tr.knots().at(pos + u);
+                        if let Ok(Some((x, y))) =
+                            sim.project_rod_axis(cam, tr.rod() as usize, rc.marker_y(u, pos))
+                        {
+                            truth[k] = (x - lp.x) * -lp.ty + (y - lp.y) * lp.tx;
+                        }
+                    }
+                    let per100 = 100.0 / (1.8 * h);
+                    println!(
+                        "camera {cam} rod {}: centre slope learnt {:+.3}, true {:+.3} px per 100 mm",
+                        tr.rod(),
+                        (learnt[1] - learnt[0]) * per100,
+                        (truth[1] - truth[0]) * per100
+                    );
                 }
             }
             let stats = |v: &[f64]| {
@@ -426,7 +473,7 @@ impl RowStats {
 
 /// Mode `rings-travel`: see the file's top.
 fn rings_travel(args: &[String]) {
-    use rodtrack_core::track::{ring_rows, ring_silhouette, ring_silhouette_scan, SilhouetteScan};
+    use rodtrack_core::track::{ring_silhouette, ring_silhouette_scan, SilhouetteScan};
     let (name, frames, variation, cam) = (
         &args[2],
         args[3].parse().unwrap(),
@@ -447,18 +494,7 @@ fn rings_travel(args: &[String]) {
         from_radii: 0.75,
         span_radii: 0.6,
     };
-    let cell = m.cell_mm();
-    let rows: Vec<(f64, bool)> = ring_rows(&m)
-        .into_iter()
-        .map(|u| (u, true))
-        .chain(
-            m.kernel()
-                .iter()
-                .enumerate()
-                .filter(|(_, &black)| black)
-                .map(|(c, _)| (m.barcode_start_mm() + (c as f64 + 0.5) * cell, false)),
-        )
-        .collect();
+    let rows: Vec<(f64, bool)> = rodtrack_core::track::silhouette_rings(&m);
     // Per rod: per row, and the true axis against the calibrated line.
     let mut stats = vec![vec![RowStats::default(); rows.len()]; rods.len()];
     let mut axis = vec![RowStats::default(); rods.len()];
@@ -476,6 +512,13 @@ fn rings_travel(args: &[String]) {
             };
             let rc = sim.scene().rods[rod as usize].clone();
             let pos = t.m.position_mm;
+            let maxv: f64 = std::env::var("MAXV")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(1e9);
+            if t.m.velocity_mm_s.abs() > maxv {
+                continue;
+            }
             for (k, &(u, white)) in rows.iter().enumerate() {
                 let lp = c.knots.at(pos + u);
                 let Some(true_off) = sim
