@@ -347,9 +347,11 @@ impl ScaleFit {
 /// along (the print's shading fades a white ring's edges into a dark limb on one side more
 /// than on the other; a black ring's neighbours in the print blur into it), so each ring gets
 /// its own line, and only how the offsets run along the travel, the slope, is shared. Where
-/// something beside the rod (a figure's shadow or legs at some angles, a lamp's reflection)
-/// bends one ring's offsets as the marker travels, the other rings do not follow it: the slope
-/// is the median of the rings' slopes.
+/// something beside the rod (a figure's legs at some angles, a line on the table, a lamp's
+/// reflection) bends one ring's offsets as the marker travels, the other rings do not follow
+/// it: the slope is the median of the rings' slopes. The witnesses are the rings of the
+/// polarity (white or black print) that stands out more from the background, as measured
+/// (the less contrast, the more noise and anything beside the rod move an edge).
 ///
 /// A silhouette is only as good as the background beside the rod: something bright next to
 /// one side (a figure, the table's wall, a reflection) moves that edge alone, and a gate on
@@ -420,12 +422,6 @@ impl CentreFit {
         self.slope
     }
 
-    /// Rings with lines of their own that a frame needs for its consensus gate, the gate in
-    /// median absolute deviations of the rings' offsets from their lines, and its floor, px.
-    const CONSENSUS_RINGS: usize = 5;
-    const CONSENSUS_MADS: f64 = 4.0;
-    const CONSENSUS_MIN_PX: f64 = 0.1;
-
     /// Samples before the half width's scatter gates new ones.
     const WIDTH_GATE_AFTER: f64 = 20.0;
     /// The half-width gate, in its scatters, and its floor, px.
@@ -452,56 +448,14 @@ impl CentreFit {
     /// spread of the rings along one marker (each ring's own bias would make a slope over the
     /// marker's 30 mm, carried far along the travel). Returns how many were let in.
     pub fn add_frame(&mut self, rings: &[Silhouette]) -> usize {
-        // The gates of each ring on its own, then the frame's consensus: every ring of one
-        // frame sees the same axis, so a ring whose offset from its own line stands out from
-        // the other rings' is disturbed by something beside it in this frame.
-        let mut dev = [None; MAX_RINGS];
-        let mut pass = [false; MAX_RINGS];
-        let mut resid = [0.0f64; MAX_RINGS];
-        let mut own = [false; MAX_RINGS];
-        let mut n_own = 0;
-        for (i, r) in rings.iter().enumerate().take(MAX_RINGS) {
+        let (mut n, mut sum_s, mut sum_r) = (0usize, 0.0, 0.0);
+        for r in rings {
             if r.ring >= MAX_RINGS {
                 continue;
             }
-            let Ok(d) = self.gate(r) else {
+            let Ok(dev) = self.gate(r) else {
                 continue;
             };
-            pass[i] = true;
-            dev[i] = d;
-            let ring = &self.rings[r.ring];
-            if let Some((ms, mv)) = ring
-                .mean_s_v()
-                .filter(|_| ring.line.n >= RingFit::OWN_AFTER)
-            {
-                resid[i] = r.offset_px - (mv + self.slope * (r.s_mm - ms));
-                own[i] = true;
-                n_own += 1;
-            }
-        }
-        if n_own >= Self::CONSENSUS_RINGS {
-            let mut sorted = [0.0f64; MAX_RINGS];
-            let mut k = 0;
-            for (i, &o) in own.iter().enumerate() {
-                if o {
-                    sorted[k] = resid[i];
-                    k += 1;
-                }
-            }
-            let (mid, spread) = median_and_mad(&mut sorted[..k]);
-            let limit = (Self::CONSENSUS_MADS * spread).max(Self::CONSENSUS_MIN_PX);
-            for i in 0..MAX_RINGS {
-                if own[i] && (resid[i] - mid).abs() > limit {
-                    pass[i] = false;
-                }
-            }
-        }
-        let (mut n, mut sum_s, mut sum_r) = (0usize, 0.0, 0.0);
-        for (i, r) in rings.iter().enumerate().take(MAX_RINGS) {
-            if !pass[i] {
-                continue;
-            }
-            let dev = dev[i];
             if self.frames < 1.0 && n == 0 {
                 (self.s_lo, self.s_hi) = (r.s_mm, r.s_mm);
             } else {
@@ -560,23 +514,11 @@ impl CentreFit {
         };
         let white = contrast(true) >= contrast(false);
         let mut slopes = [0.0f64; MAX_RINGS];
-        let mut n = 0;
-        for pass in [true, false] {
-            for r in &self.rings {
-                if pass && r.white != white {
-                    continue;
-                }
-                if let Some((_, b, _)) = r.line.coeffs().filter(|c| c.1 != 0.0) {
-                    slopes[n] = b;
-                    n += 1;
-                }
-            }
-            if n >= 3 || !pass {
-                break;
-            }
-            n = 0;
+        let mut n = self.ring_slopes(Some(white), &mut slopes);
+        if n < 3 {
+            n = self.ring_slopes(None, &mut slopes);
         }
-        self.slope = median_and_mad(&mut slopes[..n]).0;
+        self.slope = median(&mut slopes[..n]);
         let (mut sum_a, mut sum_w) = (0.0, 0.0);
         for r in &self.rings {
             if let Some((ms, mv)) = r.mean_s_v() {
@@ -585,6 +527,22 @@ impl CentreFit {
             }
         }
         self.intercept_px = sum_a / sum_w.max(1e-12);
+    }
+
+    /// Writes the slopes of the rings (of one polarity, or all) whose samples spread far
+    /// enough along the axis to have one into `out`; returns how many.
+    fn ring_slopes(&self, white: Option<bool>, out: &mut [f64; MAX_RINGS]) -> usize {
+        let mut n = 0;
+        for r in &self.rings {
+            if white.is_some_and(|w| w != r.white) {
+                continue;
+            }
+            if let Some((_, b, _)) = r.line.coeffs().filter(|c| c.1 != 0.0) {
+                out[n] = b;
+                n += 1;
+            }
+        }
+        n
     }
 
     /// The gates: `Err` refuses the silhouette; `Ok` gives its half width's deviation from
@@ -615,6 +573,18 @@ impl CentreFit {
             }
         }
         Ok((ring.line.n >= RingFit::OWN_AFTER).then_some(d))
+    }
+
+    /// Per ring (diagnostics): white, the samples taken, and its own slope (px per mm) once
+    /// its samples spread far enough.
+    pub fn rings(&self) -> impl Iterator<Item = (bool, f64, Option<f64>)> + '_ {
+        self.rings.iter().map(|r| {
+            (
+                r.white,
+                r.line.n,
+                r.line.coeffs().map(|c| c.1).filter(|b| *b != 0.0),
+            )
+        })
     }
 
     /// Number of frames that added to the fit.
@@ -852,6 +822,11 @@ impl RodTracker {
         let st = &self.enhanced;
         let (offset, ratio) = st.centre.at(s_mm);
         (offset, ratio, eps_of(st.eps_best))
+    }
+
+    /// The centre line learnt so far (diagnostics).
+    pub fn centre_fit(&self) -> &CentreFit {
+        &self.enhanced.centre
     }
 
     /// The rod id.
@@ -1966,23 +1941,15 @@ pub fn ring_rows(marker: &Marker) -> Vec<f64> {
     rows
 }
 
-/// The median of `v` and its median absolute deviation scaled to a normal distribution's
-/// standard deviation (1.4826 MAD); `v` is reordered. (0, 0) for an empty slice.
-fn median_and_mad(v: &mut [f64]) -> (f64, f64) {
-    let median = |v: &mut [f64]| {
-        let n = v.len();
-        v.sort_unstable_by(f64::total_cmp);
-        match n {
-            0 => 0.0,
-            _ if n % 2 == 1 => v[n / 2],
-            _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-        }
-    };
-    let mid = median(v);
-    for x in v.iter_mut() {
-        *x = (*x - mid).abs();
+/// The median of `v` (reordered); 0 for an empty slice.
+fn median(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    v.sort_unstable_by(f64::total_cmp);
+    match n {
+        0 => 0.0,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
     }
-    (mid, 1.4826 * median(v))
 }
 
 /// Marker `u` of the full rings whose silhouettes the tracker learns the rod's centre line

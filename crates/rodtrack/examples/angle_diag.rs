@@ -258,6 +258,21 @@ fn main() {
                         }
                     }
                     let per100 = 100.0 / (1.8 * h);
+                    if std::env::var_os("RINGS").is_some() {
+                        let rings: Vec<String> = tr
+                            .centre_fit()
+                            .rings()
+                            .take(17)
+                            .map(|(white, n, b)| {
+                                let b = b.map_or("-".to_string(), |b| format!("{:+.3}", b * 100.0));
+                                format!("{}{n:.0}:{b}", if white { "w" } else { "b" })
+                            })
+                            .collect();
+                        println!(
+                            "  rings (samples: slope px per 100 mm): {}",
+                            rings.join(" ")
+                        );
+                    }
                     println!(
                         "camera {cam} rod {}: centre slope learnt {:+.3}, true {:+.3} px per 100 mm",
                         tr.rod(),
