@@ -1,10 +1,10 @@
 //! The console's cost to the tracking, as a share of the pipeline's own time: the simulated demo
 //! (two calibrated 1440x1080 Bayer cameras, 8 rods) tracked and published at 200 frame sets/s
 //! with a live WebSocket client connected (so frames are copied at the live rate), once through
-//! the buffer-swap path ([`ConsoleHandle::publish_frame_buffer`], what `rodtrack demo` and
-//! `rodtrack console --demo` use) and once through the copy path
-//! ([`ConsoleHandle::publish_frame`], a decimated copy of a borrowed frame, what
-//! `rodtrack track --console` uses), several runs each, alternating.
+//! the buffer-swap path ([`ConsoleHandle::publish_frame_buffer`], what `rodtrack demo`,
+//! `rodtrack console --demo` and `rodtrack track --console` use) and once through the copy
+//! path ([`ConsoleHandle::publish_frame`], a decimated copy of a borrowed frame, for callers
+//! that cannot hand over their frame buffers), several runs each, alternating.
 //!
 //! The share of one run comes from the medians of each kind of call, which a loaded machine
 //! preempts less than it does wall-clock totals: `(copies/s x copy + (frames/s - copies/s) x

@@ -50,7 +50,7 @@
 //!   &RodResult)` for a one-off overlay.
 //! - [`ConsoleHandle::publish_frame_buffer`]: the same for an owned buffer, swapped instead of
 //!   copied (zero copy, full resolution; `rodtrack demo` and `rodtrack console --demo` use it,
-//!   `rodtrack track` uses the decimated copy: its frames are the runtime's).
+//!   and `rodtrack track`, whose frames are the runtime's, through the runtime's frame hook).
 //! - [`ConsoleHandle::publish_rows`]`(&[Measurement])`, [`ConsoleHandle::publish_stats`].
 //! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions
 //!   (see [`server`]).

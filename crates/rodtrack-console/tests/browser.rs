@@ -276,7 +276,7 @@ fn demo_in_the_browser_screenshot_and_calibration_equal_to_the_cli() {
             100.0 * tm.share_at(200.0, 2.0, 2.0 * rodtrack_console::LIVE_FPS)
         );
     });
-    // The copy path (`rodtrack track --console`): decimated live frames (a 1440x1080 Bayer
+    // The copy path (`publish_frame`, for borrowed frames): decimated live frames (a 1440x1080 Bayer
     // frame copied as 720x540, shown as 360x270), drawn enlarged under sharp overlays.
     std::thread::scope(|s| {
         let runner = s.spawn(|| demo.run(&console, 600, true, false));

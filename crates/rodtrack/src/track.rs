@@ -159,6 +159,14 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// A live frame's overlays between a camera's processing stage and its frame hook: made for
+/// the frame `frame_id` (None when no frame waits for the hook).
+#[derive(Default)]
+struct LiveOverlays {
+    frame_id: Option<u64>,
+    overlays: Vec<rodtrack_console::RodOverlay>,
+}
+
 /// Passes rows on to `inner` and shows them in the web console's plots.
 struct ConsoleRows<S> {
     inner: S,
@@ -520,13 +528,17 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
         };
         let t = Arc::new(ProcessTimes::default());
         times.push(t.clone());
-        let mut overlays = Vec::new();
         // The overlays' constant parts (the rods' lines), once: a live frame then only places
         // the markers.
         let geometry = console
             .as_ref()
             .map(|_| rodtrack_console::CameraOverlays::new(pipe.rods()))
             .unwrap_or_default();
+        // A live frame's overlays, made by the processing stage when the console asks for the
+        // frame, published with the frame by the frame hook right after.
+        let live = Arc::new(Mutex::new(LiveOverlays::default()));
+        let live_hook = live.clone();
+        let console_hook = console.clone();
         let index = pipeline.add_camera(
             source,
             Box::new(move |meta, frame, rows| {
@@ -537,12 +549,14 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
                         let r = pipe
                             .process(&view, meta.frame_id, ts, rows)
                             .map_err(|e| e.to_string());
-                        // The frame is the runtime's: the console gets a decimated copy, and
-                        // only when it asks for one (two atomic loads per frame otherwise).
+                        // Only when the console asks for the frame (two atomic loads per frame
+                        // otherwise): the overlays now, the frame itself in the frame hook.
                         if let (Ok(()), Some(c)) = (&r, console.as_ref()) {
                             if c.wants_frame(cam_index) {
-                                geometry.fill(pipe.last_results(), &mut overlays);
-                                c.publish_frame(cam_index, &view, meta.frame_id, ts, &overlays);
+                                if let Ok(mut l) = live.lock() {
+                                    geometry.fill(pipe.last_results(), &mut l.overlays);
+                                    l.frame_id = Some(meta.frame_id);
+                                }
                             }
                         }
                         r
@@ -573,6 +587,33 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
                 }
             }),
         );
+        if let Some(c) = console_hook {
+            // The console takes the frame's buffer instead of a copy (swapped with the one it
+            // held, which goes back to the runtime's pool).
+            pipeline.set_frame_hook(
+                index,
+                Box::new(move |buf| {
+                    let Ok(mut l) = live_hook.lock() else {
+                        return;
+                    };
+                    if l.frame_id.take() != Some(buf.meta.frame_id) {
+                        return;
+                    }
+                    let m = buf.meta;
+                    c.publish_frame_buffer(
+                        cam_index,
+                        &mut buf.data,
+                        m.width,
+                        m.height,
+                        m.stride,
+                        m.format,
+                        m.frame_id,
+                        m.timestamp_ns.as_secs_f64(),
+                        &l.overlays,
+                    );
+                }),
+            )?;
+        }
         if let Some(mode) = filter {
             let mut f = CameraFilter::new(mode);
             pipeline.set_camera_filter(

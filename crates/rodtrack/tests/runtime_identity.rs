@@ -148,3 +148,94 @@ fn sim_sources_with_different_seeds_differ() {
     assert!(a == png);
     assert!(a != b);
 }
+
+/// `track --console`: the console takes the live frames' buffers from the runtime (the frame
+/// hook swaps them, no copy). A client connected to the live view gets frames while the live
+/// simulator runs in real time, and the measurements are those of the same run without the
+/// console: a swapped buffer goes back to the runtime's pool and later frames are whole.
+#[test]
+fn track_with_the_console_serves_live_frames_and_measures_the_same() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    const LIVE_FRAMES: usize = 500;
+    let (t, calib) = simulate_and_calibrate("runtime_console", 2, 2);
+    let inputs: Vec<String> = (0..2)
+        .map(|c| format!("sim://exp3?camera={c}&frames={LIVE_FRAMES}&seed=1&realtime=1"))
+        .collect();
+    let out = t.join("console.csv");
+    let mut child = Command::new(BIN)
+        .args(["track", "--calib", &calib.display().to_string()])
+        .args(["--input", &inputs[0], "--input", &inputs[1]])
+        .args(["--out", &out.display().to_string()])
+        .args(["--console", "127.0.0.1:0"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut addr = None;
+    let mut line = String::new();
+    while stderr.read_line(&mut line).unwrap() > 0 {
+        if let Some(url) = line.trim().strip_prefix("web console: http://") {
+            addr = Some(url.trim_end_matches('/').to_string());
+            break;
+        }
+        line.clear();
+    }
+    let addr = addr.expect("track printed no console address");
+    // Drain the rest of stderr (progress) so the child never blocks on it.
+    let drain = std::thread::spawn(move || {
+        let mut rest = String::new();
+        let _ = std::io::Read::read_to_string(&mut stderr, &mut rest);
+        rest
+    });
+    let stream = std::net::TcpStream::connect(&addr).unwrap();
+    stream
+        .set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let (mut ws, _) =
+        tungstenite::client::client(format!("ws://{addr}/ws").as_str(), stream).unwrap();
+    let mut frames = 0usize;
+    loop {
+        match ws.read() {
+            Ok(tungstenite::Message::Binary(_)) => frames += 1,
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+            }
+            Err(_) => break,
+        }
+    }
+    let status = child.wait().unwrap();
+    let rest = drain.join().unwrap();
+    assert!(status.success(), "track --console failed: {rest}");
+    // 2.5 s at 3 live frames per camera per second: about 15, if the machine keeps up.
+    assert!(frames >= 4, "{frames} live frames received");
+    let with_console = std::fs::read(&out).unwrap();
+    let plain: Vec<String> = (0..2)
+        .map(|c| format!("sim://exp3?camera={c}&frames={LIVE_FRAMES}&seed=1"))
+        .collect();
+    let without = track(&calib, &plain, &t.join("plain.csv"));
+    // A real-time run writes each camera's rows as soon as they are measured, so the cameras'
+    // rows of one frame set may come in another order: the rows are compared as sets.
+    let sorted = |bytes: &[u8]| {
+        let mut lines: Vec<String> = String::from_utf8_lossy(bytes)
+            .lines()
+            .map(str::to_string)
+            .collect();
+        lines.sort();
+        lines
+    };
+    let (a, b) = (sorted(&with_console), sorted(&without));
+    assert_eq!(a.len(), 1 + LIVE_FRAMES * (7 + 7 + 8));
+    assert!(
+        a == b,
+        "measurements with the console's live view differ from those without"
+    );
+}

@@ -97,6 +97,13 @@ pub type ProcessFn =
 /// empty; e.g. a temporal filter). The fusion stage still receives the measured rows.
 pub type CameraFilterFn = Box<dyn FnMut(&FrameMeta, &[Measurement], &mut Vec<Measurement>) + Send>;
 
+/// A camera's frame hook, run in the camera's thread right after its processing stage, on
+/// the frames that were read without error: it may take the frame's pixels by swapping the
+/// buffer's `data` with a vector of its own (e.g. a live view that keeps the frame instead of
+/// copying it), which then goes back to the buffer pool in the frame's place. The frame's
+/// rows are already measured; the hook must leave `meta` as it is.
+pub type FrameHookFn = Box<dyn FnMut(&mut FrameBuffer) + Send>;
+
 /// Fusion of a frame set: given the set and the measured rows of all its cameras, appends extra
 /// rows (e.g. `camera = fused`).
 pub type FusionFn = Box<dyn FnMut(&FrameSetInfo, &[Measurement], &mut Vec<Measurement>) + Send>;
@@ -361,6 +368,7 @@ struct Camera {
     source: Box<dyn FrameSource>,
     process: ProcessFn,
     filter: Option<CameraFilterFn>,
+    hook: Option<FrameHookFn>,
 }
 
 /// A multi-camera pipeline; see the module documentation.
@@ -615,6 +623,7 @@ struct Worker<D> {
     camera: usize,
     process: ProcessFn,
     filter: Option<CameraFilterFn>,
+    hook: Option<FrameHookFn>,
     counters: Arc<PipelineCounters>,
     errors: Arc<Mutex<Vec<String>>>,
     pool: BufferPool,
@@ -630,14 +639,19 @@ impl<D: Deliver> Worker<D> {
     }
 
     /// Processes a frame and delivers its rows; false when the output is gone.
-    fn handle(&mut self, cap: Captured) -> bool {
+    fn handle(&mut self, mut cap: Captured) -> bool {
         let started = Instant::now();
         let c = &self.counters.cameras[self.camera];
         let mut rows = self.rows_vec();
         let meta = cap.buf.meta;
         match cap.result {
             Ok(()) => match cap.buf.try_view() {
-                Ok(view) => (self.process)(&meta, Ok(view), &mut rows),
+                Ok(view) => {
+                    (self.process)(&meta, Ok(view), &mut rows);
+                    if let Some(hook) = self.hook.as_mut() {
+                        hook(&mut cap.buf);
+                    }
+                }
                 Err(e) => {
                     c.bad_frames.fetch_add(1, Ordering::Relaxed);
                     push_error(&self.errors, e.to_string());
@@ -801,6 +815,7 @@ impl Pipeline {
             source,
             process,
             filter: None,
+            hook: None,
         });
         (self.cameras.len() - 1) as u32
     }
@@ -818,6 +833,18 @@ impl Pipeline {
             ))
         })?;
         cam.filter = Some(filter);
+        Ok(())
+    }
+
+    /// Sets camera `camera`'s frame hook (see [`FrameHookFn`]).
+    pub fn set_frame_hook(&mut self, camera: u32, hook: FrameHookFn) -> Result<(), IoError> {
+        let n = self.cameras.len();
+        let cam = self.cameras.get_mut(camera as usize).ok_or_else(|| {
+            IoError::Config(format!(
+                "frame hook for camera {camera}, but {n} camera(s) added"
+            ))
+        })?;
+        cam.hook = Some(hook);
         Ok(())
     }
 
@@ -938,6 +965,7 @@ impl Pipeline {
                 source,
                 process,
                 filter,
+                hook,
             } = cam;
             t.names.push(source.info().name);
             let pool = BufferPool::new(depth + 3);
@@ -957,6 +985,7 @@ impl Pipeline {
                 camera: i,
                 process,
                 filter,
+                hook,
                 counters: counters.clone(),
                 errors: errs,
                 pool,

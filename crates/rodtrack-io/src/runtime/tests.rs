@@ -278,3 +278,42 @@ fn a_filter_for_a_camera_not_added_is_an_error() {
     assert!(p.set_camera_filter(1, times_ten()).is_err());
     assert!(p.set_camera_filter(0, times_ten()).is_ok());
 }
+
+/// The frame hook sees every frame that was read whole (not the bad one), after it was
+/// measured, and may keep its pixels: it swaps the buffer's bytes with a vector of its own, as
+/// the console's live view does. The rows are those of a run without the hook, and every frame
+/// the hook kept holds that frame's pixels.
+#[test]
+fn a_frame_hook_may_keep_the_frames_pixels() {
+    let (_, plain) = two_cameras(PipelineConfig::default(), false);
+    let kept = Arc::new(Mutex::new(Vec::<(u64, u8)>::new()));
+    let mut p = Pipeline::new(PipelineConfig::default());
+    let mut a = Fake::new(0..60);
+    a.bad.insert(11);
+    p.add_camera(Box::new(a), tracker(Duration::ZERO));
+    p.add_camera(
+        Box::new(Fake::new((0..60).filter(|i| *i != 7))),
+        tracker(Duration::ZERO),
+    );
+    p.set_camera_filter(0, times_ten()).unwrap();
+    p.set_fusion(fusion());
+    let log = kept.clone();
+    let mut mine: Vec<u8> = Vec::new();
+    p.set_frame_hook(
+        0,
+        Box::new(move |buf| {
+            std::mem::swap(&mut mine, &mut buf.data);
+            // What a live view would hold: this frame's pixels.
+            log.lock().unwrap().push((buf.meta.frame_id, mine[0]));
+        }),
+    )
+    .unwrap();
+    assert!(p.set_frame_hook(2, Box::new(|_| {})).is_err());
+    let mut sink = Writes::default();
+    p.run(&mut sink).unwrap();
+    assert_eq!(sink.0, plain, "the hook changed the rows");
+    let kept = kept.lock().unwrap();
+    let ids: Vec<u64> = kept.iter().map(|k| k.0).collect();
+    assert_eq!(ids, (0..60).filter(|i| *i != 11).collect::<Vec<_>>());
+    assert!(kept.iter().all(|&(id, px)| px == (id % 256) as u8));
+}
