@@ -278,3 +278,40 @@ fn the_rings_that_stand_out_more_are_the_witnesses() {
         );
     }
 }
+
+/// Rings whose rows hold something of their neighbours (a strong lens bends a ring's image
+/// away from the straight row across the rod) are narrower than the others and swayed along
+/// the travel. Six of ten such rings: the line follows the four that are as wide as the widest.
+#[test]
+fn rings_narrowed_by_their_neighbours_are_not_witnesses() {
+    fn swayed(s: f64) -> f64 {
+        -0.003 * s
+    }
+    let mut fit = CentreFit::default();
+    let mut rng = Lcg(29);
+    for i in 0..2000 {
+        let pos = -100.0 + (i % 201) as f64;
+        let frame: Vec<rodtrack_core::track::Silhouette> = (0..10)
+            .map(|k| {
+                let narrowed = k % 5 != 0 && k % 5 != 3;
+                let s = pos + 10.0 + 6.0 * k as f64;
+                let (c, r) = silhouette(s, 0.03, 0.0, &mut rng);
+                rodtrack_core::track::Silhouette {
+                    ring: k,
+                    white: true,
+                    contrast_dn: 100.0,
+                    s_mm: s,
+                    offset_px: c + if narrowed { swayed(s) } else { 0.0 },
+                    ratio: r - if narrowed { 0.015 } else { 0.0 },
+                    radius_px: RADIUS_PX,
+                }
+            })
+            .collect();
+        fit.add_frame(&frame);
+    }
+    assert!(
+        (fit.slope() - 0.002).abs() < 0.0002,
+        "slope {:.5} px/mm, truth 0.002",
+        fit.slope()
+    );
+}
