@@ -826,26 +826,24 @@ impl Pipeline {
         camera: u32,
         filter: CameraFilterFn,
     ) -> Result<(), IoError> {
-        let n = self.cameras.len();
-        let cam = self.cameras.get_mut(camera as usize).ok_or_else(|| {
-            IoError::Config(format!(
-                "camera filter for camera {camera}, but {n} camera(s) added"
-            ))
-        })?;
-        cam.filter = Some(filter);
+        self.camera_mut(camera, "camera filter")?.filter = Some(filter);
         Ok(())
     }
 
     /// Sets camera `camera`'s frame hook (see [`FrameHookFn`]).
     pub fn set_frame_hook(&mut self, camera: u32, hook: FrameHookFn) -> Result<(), IoError> {
-        let n = self.cameras.len();
-        let cam = self.cameras.get_mut(camera as usize).ok_or_else(|| {
-            IoError::Config(format!(
-                "frame hook for camera {camera}, but {n} camera(s) added"
-            ))
-        })?;
-        cam.hook = Some(hook);
+        self.camera_mut(camera, "frame hook")?.hook = Some(hook);
         Ok(())
+    }
+
+    /// Camera `camera`, for setting its `what`; an error naming both when it was not added.
+    fn camera_mut(&mut self, camera: u32, what: &str) -> Result<&mut Camera, IoError> {
+        let n = self.cameras.len();
+        self.cameras.get_mut(camera as usize).ok_or_else(|| {
+            IoError::Config(format!(
+                "{what} for camera {camera}, but {n} camera(s) added"
+            ))
+        })
     }
 
     /// Sets the fusion stage.

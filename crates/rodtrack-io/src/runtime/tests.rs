@@ -37,8 +37,8 @@ fn fusion() -> FusionFn {
 }
 
 /// Two cameras of 60 frames (camera 1 misses frame 7, camera 0's frame 11 is bad), camera 0
-/// with the filter, the fusion; run by the calling thread or directly.
-fn two_cameras(config: PipelineConfig, direct: bool) -> (PipelineReport, Vec<Vec<Measurement>>) {
+/// with the filter, the fusion.
+fn two_camera_pipeline(config: PipelineConfig) -> Pipeline {
     let mut p = Pipeline::new(config);
     let mut a = Fake::new(0..60);
     a.bad.insert(11);
@@ -49,6 +49,12 @@ fn two_cameras(config: PipelineConfig, direct: bool) -> (PipelineReport, Vec<Vec
     );
     p.set_camera_filter(0, times_ten()).unwrap();
     p.set_fusion(fusion());
+    p
+}
+
+/// [`two_camera_pipeline`] run by the calling thread or directly.
+fn two_cameras(config: PipelineConfig, direct: bool) -> (PipelineReport, Vec<Vec<Measurement>>) {
+    let p = two_camera_pipeline(config);
     if direct {
         let (r, sink) = p.run_direct(Writes::default()).unwrap();
         (r, sink.0)
@@ -287,16 +293,7 @@ fn a_filter_for_a_camera_not_added_is_an_error() {
 fn a_frame_hook_may_keep_the_frames_pixels() {
     let (_, plain) = two_cameras(PipelineConfig::default(), false);
     let kept = Arc::new(Mutex::new(Vec::<(u64, u8)>::new()));
-    let mut p = Pipeline::new(PipelineConfig::default());
-    let mut a = Fake::new(0..60);
-    a.bad.insert(11);
-    p.add_camera(Box::new(a), tracker(Duration::ZERO));
-    p.add_camera(
-        Box::new(Fake::new((0..60).filter(|i| *i != 7))),
-        tracker(Duration::ZERO),
-    );
-    p.set_camera_filter(0, times_ten()).unwrap();
-    p.set_fusion(fusion());
+    let mut p = two_camera_pipeline(PipelineConfig::default());
     let log = kept.clone();
     let mut mine: Vec<u8> = Vec::new();
     p.set_frame_hook(
