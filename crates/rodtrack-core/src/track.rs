@@ -527,9 +527,8 @@ impl CentreFit {
         n
     }
 
-    /// The shared slope (the median of the rings' own slopes, over the rings whose samples
-    /// spread far enough along the axis to have one; 0 before any has) and the pooled
-    /// offset.
+    /// The shared slope: the median of the witnesses' own slopes (over the rings whose samples
+    /// spread far enough along the axis to have one; 0 before any has).
     fn refit(&mut self) {
         // The witnesses: the rings of the polarity that stands out more from the background
         // (its edges are the least moved by noise and by what lies beside the rod), when at
@@ -2040,7 +2039,7 @@ pub fn silhouette_rings(marker: &Marker) -> Vec<(f64, bool)> {
 }
 
 /// The tracker's fast scan for a white ring's silhouette: 0.5 px steps over 0.75 R .. 1.35 R.
-const WHITE_RING_SCAN: SilhouetteScan = SilhouetteScan {
+pub const WHITE_RING_SCAN: SilhouetteScan = SilhouetteScan {
     bright: true,
     step_px: 0.5,
     min_contrast: 20.0,
@@ -2048,9 +2047,10 @@ const WHITE_RING_SCAN: SilhouetteScan = SilhouetteScan {
     span_radii: 0.6,
 };
 
-/// The same for a black ring (the least contrast with the background is lower: black ink is
-/// further from a mid-grey background's noise than the shaded white print's limb).
-const BLACK_RING_SCAN: SilhouetteScan = SilhouetteScan {
+/// The same for a black ring, with the least contrast that calibration's careful scan asks of
+/// either polarity (12 DN). Whether the black rings serve is decided by their measured
+/// contrast against the white rings' (see [`CentreFit`]), not by this floor.
+pub const BLACK_RING_SCAN: SilhouetteScan = SilhouetteScan {
     bright: false,
     min_contrast: 12.0,
     ..WHITE_RING_SCAN

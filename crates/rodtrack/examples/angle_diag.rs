@@ -2,7 +2,11 @@
 //!
 //! `cargo run --release --example angle_diag -- scenario NAME FRAMES VARIATION OUT.csv`
 //! (`SEED=N` picks the scenario, noise and click seed, 3 by default; `STRIDE=K` processes
-//! every K-th frame, as `rodtrack evaluate` does for slow scenarios.)
+//! every K-th frame, as `rodtrack evaluate` does for slow scenarios; `CALIB=FILE.toml` tracks
+//! with that calibration file, e.g. from `rodtrack calibrate --auto`, instead of calibrating
+//! from the simulator's clicks; `ONLY=CAM:ROD` measures one rod; `RINGS=1` also prints each
+//! ring's samples and own slope.) It ends with each rod's learnt centre-line slope against the
+//! true axis' across the calibrated line.
 //! `cargo run --release --example angle_diag -- grid VARIATION NOISE(0|1) OUT.csv`
 //! `cargo run --release --example angle_diag -- profile NAME FRAMES CAM ROD FRAME`
 //! `cargo run --release --example angle_diag -- rings NAME FRAMES VARIATION CAM ROD FRAME`
@@ -12,8 +16,8 @@
 //! and the rows reported ok on hidden ones. `profile` prints the luma along one rod's marker
 //! and across it at each bit space; `rings` the rings' silhouettes against the true axis.
 //! `rings-travel` follows every ring row over a scenario (`RODS` comma-separated; `STRIDE`
-//! as for `scenario`, 2 by default): per row, white (the tracker's) and black (the barcode's
-//! black cells), the silhouette's centre minus the true axis (mean, std), its half width over
+//! as for `scenario`, 2 by default): per ring the tracker learns from (white and black, read
+//! with the tracker's scans), the silhouette's centre minus the true axis (mean, std), its half width over
 //! the calibrated radius, and how that offset runs along the travel (slope, px per 100 mm),
 //! which is what the learnt centre line cannot tell from the axis.
 //! `grid` renders still states (every rod at a grid of positions and angles) and measures each
@@ -243,6 +247,9 @@ fn main() {
             // calibrated line, over the travel at bit space 0.
             for (cam, trs) in trackers.iter().enumerate() {
                 for tr in trs {
+                    if std::env::var("ONLY").is_ok_and(|o| o != format!("{cam}:{}", tr.rod())) {
+                        continue;
+                    }
                     let rc = sim.scene().rods[tr.rod() as usize].clone();
                     let h = rc.half_travel_mm();
                     let u = Marker::v1().bit_space_centre_mm(0);
@@ -258,11 +265,17 @@ fn main() {
                         }
                     }
                     let per100 = 100.0 / (1.8 * h);
+                    println!(
+                        "camera {cam} rod {}: centre slope learnt {:+.3}, true {:+.3} px per 100 mm",
+                        tr.rod(),
+                        (learnt[1] - learnt[0]) * per100,
+                        (truth[1] - truth[0]) * per100
+                    );
                     if std::env::var_os("RINGS").is_some() {
                         let rings: Vec<String> = tr
                             .centre_fit()
                             .rings()
-                            .take(17)
+                            .filter(|r| r.1 > 0.0)
                             .map(|(white, n, b)| {
                                 let b = b.map_or("-".to_string(), |b| format!("{:+.3}", b * 100.0));
                                 format!("{}{n:.0}:{b}", if white { "w" } else { "b" })
@@ -273,12 +286,6 @@ fn main() {
                             rings.join(" ")
                         );
                     }
-                    println!(
-                        "camera {cam} rod {}: centre slope learnt {:+.3}, true {:+.3} px per 100 mm",
-                        tr.rod(),
-                        (learnt[1] - learnt[0]) * per100,
-                        (truth[1] - truth[0]) * per100
-                    );
                 }
             }
             let stats = |v: &[f64]| {
@@ -488,7 +495,7 @@ impl RowStats {
 
 /// Mode `rings-travel`: see the file's top.
 fn rings_travel(args: &[String]) {
-    use rodtrack_core::track::{ring_silhouette, ring_silhouette_scan, SilhouetteScan};
+    use rodtrack_core::track::{ring_silhouette_scan, BLACK_RING_SCAN, WHITE_RING_SCAN};
     let (name, frames, variation, cam) = (
         &args[2],
         args[3].parse().unwrap(),
@@ -502,13 +509,6 @@ fn rings_travel(args: &[String]) {
         .unwrap_or(2);
     let (mut sim, _, cals) = setup(name, frames, variation, true);
     let m = Marker::v1();
-    let black_scan = SilhouetteScan {
-        bright: false,
-        step_px: 0.5,
-        min_contrast: 12.0,
-        from_radii: 0.75,
-        span_radii: 0.6,
-    };
     let rows: Vec<(f64, bool)> = rodtrack_core::track::silhouette_rings(&m);
     // Per rod: per row, and the true axis against the calibrated line.
     let mut stats = vec![vec![RowStats::default(); rows.len()]; rods.len()];
@@ -527,13 +527,6 @@ fn rings_travel(args: &[String]) {
             };
             let rc = sim.scene().rods[rod as usize].clone();
             let pos = t.m.position_mm;
-            let maxv: f64 = std::env::var("MAXV")
-                .ok()
-                .and_then(|s| s.parse().ok())
-                .unwrap_or(1e9);
-            if t.m.velocity_mm_s.abs() > maxv {
-                continue;
-            }
             for (k, &(u, white)) in rows.iter().enumerate() {
                 let lp = c.knots.at(pos + u);
                 let Some(true_off) = sim
@@ -546,11 +539,12 @@ fn rings_travel(args: &[String]) {
                 if white {
                     axis[ir].add(pos + u, true_off, 1.0);
                 }
-                let sil = if white {
-                    ring_silhouette(&view, &lp)
+                let scan = if white {
+                    &WHITE_RING_SCAN
                 } else {
-                    ring_silhouette_scan(&view, &lp, &black_scan)
+                    &BLACK_RING_SCAN
                 };
+                let sil = ring_silhouette_scan(&view, &lp, scan);
                 // Far off: a hand or a figure, which the tracker's gates refuse.
                 if let Some((centre, hw)) = sil.filter(|s| (s.0 - true_off).abs() < 3.0) {
                     stats[ir][k].add(pos + u, centre - true_off, hw / lp.radius_px);

@@ -593,6 +593,10 @@ pub fn run_cameras<S: MeasurementSink + 'static>(
             pipeline.set_frame_hook(
                 index,
                 Box::new(move |buf| {
+                    // Nothing to do on most frames: two atomic loads, no lock.
+                    if !c.wants_frame(cam_index) {
+                        return;
+                    }
                     let Ok(mut l) = live_hook.lock() else {
                         return;
                     };
