@@ -92,6 +92,8 @@ pub fn new_rod(rod: u32, travel_mm: [f64; 2]) -> RodInputs {
             position_mm: 0.0,
             angle_rad: 0.0,
         },
+        known_poses: Vec::new(),
+        travel_frames: None,
         marker: MarkerSpec::default(),
     }
 }

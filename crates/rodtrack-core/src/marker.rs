@@ -12,7 +12,6 @@ use std::f64::consts::TAU;
 
 /// The barcode part of a marker.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct BarcodeSpec {
     /// Where the first cell starts, mm from the marker's start.
     pub start_mm: f64,
@@ -24,7 +23,6 @@ pub struct BarcodeSpec {
 
 /// The Gray-code part of a marker.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct GrayCodeSpec {
     /// Where bit space 0 starts, mm from the marker's start.
     pub start_mm: f64,
@@ -36,7 +34,6 @@ pub struct GrayCodeSpec {
 
 /// A marker description (the "marker description file"). Defaults are marker v1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct MarkerSpec {
     /// Diameter of the rod the marker is wrapped around, mm.
     pub rod_diameter_mm: f64,

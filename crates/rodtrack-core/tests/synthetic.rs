@@ -81,6 +81,8 @@ fn inputs() -> RodInputs {
             position_mm: 0.0,
             angle_rad: 0.0,
         },
+        known_poses: Vec::new(),
+        travel_frames: None,
         marker: MarkerSpec::default(),
     }
 }

@@ -704,6 +704,8 @@ impl Ctx {
                     position_mm: rp,
                     angle_rad: ra,
                 },
+                known_poses: Vec::new(),
+                travel_frames: None,
                 marker: self.scene.marker_spec_for(i),
             });
         }

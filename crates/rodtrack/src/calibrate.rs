@@ -26,8 +26,9 @@ use rodtrack_core::calib::find::{
     find_markers, find_markers_in, path_points_from_sweep, FoundMarker,
 };
 use rodtrack_core::calib::{
-    calibrate_rod, CalibrationFile, CalibrationInputs, CameraCalibration, ImageSize, OpencvModel,
-    ReferenceFrames, ReferencePose, RodCalibration, RodInputs, CALIBRATION_VERSION,
+    calibrate_rod, calibrate_rods, CalibrationFile, CalibrationInputs, CameraCalibration,
+    ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodCalibration, RodInputs,
+    CALIBRATION_VERSION,
 };
 use rodtrack_core::{CameraIntrinsics, FrameView, Marker, MarkerSpec, PixelFormat};
 use rodtrack_io::source::{
@@ -174,41 +175,50 @@ pub fn calibrate_camera(
         .join(&inputs.reference_frames.dir);
     let files =
         list_image_files(&dir).with_context(|| format!("{name}: field `reference_frames.dir`"))?;
-    let mut rods = Vec::new();
-    let mut frames: Vec<(usize, FrameBuffer)> = Vec::new();
+    // Every frame a rod names: its reference frame and its known poses.
+    let mut wanted: Vec<(u32, &str, usize)> = Vec::new();
     for rod in &inputs.rods {
-        let idx = rod.reference.frame;
-        if !frames.iter().any(|(i, _)| *i == idx) {
-            let file = files.get(idx).ok_or_else(|| {
-                anyhow!(
-                    "{name}: rod {}: field `reference.frame`: frame {idx} does not exist ({} images in {})",
-                    rod.rod,
-                    files.len(),
-                    dir.display()
-                )
-            })?;
-            let mut buf = FrameBuffer::new();
-            decode_image_file(file, Some(format), &mut buf)
-                .with_context(|| format!("reference frame {}", file.display()))?;
-            frames.push((idx, buf));
+        wanted.push((rod.rod, "reference.frame", rod.reference.frame));
+        for k in rod.all_known_poses() {
+            wanted.push((rod.rod, "known_poses", k.frame));
         }
-        let Some((_, buf)) = frames.iter().find(|(i, _)| *i == idx) else {
-            bail!("internal: reference frame {idx} not loaded");
-        };
+    }
+    let mut frames: Vec<(usize, FrameBuffer)> = Vec::new();
+    for (rod, field, idx) in wanted {
+        if frames.iter().any(|(i, _)| *i == idx) {
+            continue;
+        }
+        let file = files.get(idx).ok_or_else(|| {
+            anyhow!(
+                "{name}: rod {rod}: field `{field}`: frame {idx} does not exist ({} images in {})",
+                files.len(),
+                dir.display()
+            )
+        })?;
+        let mut buf = FrameBuffer::new();
+        decode_image_file(file, Some(format), &mut buf)
+            .with_context(|| format!("reference frame {}", file.display()))?;
+        frames.push((idx, buf));
+    }
+    let mut views: Vec<(usize, FrameView)> = Vec::new();
+    for (i, buf) in &frames {
         let view: FrameView = buf.view()?;
         if view.width() != inputs.image_size.width || view.height() != inputs.image_size.height {
             bail!(
-                "{name}: reference frame is {}x{} but `image_size` says {}x{}",
+                "{name}: reference frame {i} is {}x{} but `image_size` says {}x{}",
                 view.width(),
                 view.height(),
                 inputs.image_size.width,
                 inputs.image_size.height
             );
         }
-        let cal = calibrate_rod(rod, &view, intrinsics.as_ref())
-            .with_context(|| format!("{name}: calibrating rod {}", rod.rod))?;
-        rods.push(cal);
+        views.push((*i, view));
     }
+    let rods = calibrate_rods(&inputs.rods, &views, intrinsics.as_ref())
+        .into_iter()
+        .zip(&inputs.rods)
+        .map(|(c, r)| c.with_context(|| format!("{name}: calibrating rod {}", r.rod)))
+        .collect::<Result<Vec<_>>>()?;
     Ok(camera_calibration(inputs, index, format, 200.0, rods))
 }
 
@@ -264,6 +274,19 @@ pub fn print_report(cam: &CameraCalibration) {
             s.radius_ratio,
             if r.paper.is_some() { "yes" } else { "no" }
         );
+        if !s.travel_model.is_empty() {
+            let rods = s
+                .depth_change_per_m_from_rods
+                .map(|d| format!(" (the parallel rods give {d:+.4})"))
+                .unwrap_or_default();
+            println!(
+                "       along the travel: {}, depth change {:+.4} per m{rods}",
+                s.travel_model, s.depth_change_per_m
+            );
+        }
+        for [frame, err] in &s.known_pose_errors_mm {
+            println!("       known pose in frame {frame}: position read {err:+.3} mm off");
+        }
         for w in &s.warnings {
             println!("       warning: {w}");
         }
@@ -767,6 +790,8 @@ fn rod_result(
                 position_mm: 0.0,
                 angle_rad: 0.0,
             },
+            known_poses: Vec::new(),
+            travel_frames: None,
             marker: spec.clone(),
         },
         span_px,

@@ -2,7 +2,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_core::calib::inputs::OPENCV_MODEL_FILE_KEY;
-use rodtrack_core::calib::opencv::parse_opencv_model;
+use rodtrack_core::calib::opencv::{is_model_key, parse_opencv_model};
 use rodtrack_core::calib::{CalibrationFile, CalibrationInputs, OpencvModel};
 use std::path::Path;
 
@@ -16,11 +16,29 @@ pub fn read_inputs(path: &Path) -> Result<CalibrationInputs> {
     // Parse straight into the inputs (errors with line and column) unless the file names an
     // OpenCV model file.
     let mut value: serde_json::Value = serde_json::from_str(&text).with_context(malformed)?;
+    // An inline OpenCV model's extra keys (other tools write doc strings there) are warned
+    // about and dropped; its reader refuses keys it does not know.
+    let mut dropped = false;
+    if let Some(model) = value
+        .get_mut("opencv_model_optional")
+        .and_then(|m| m.as_object_mut())
+    {
+        let extra: Vec<String> = model.keys().filter(|k| !is_model_key(k)).cloned().collect();
+        for k in extra {
+            warn_unknown(path, &format!("opencv_model_optional.{k}"));
+            model.remove(&k);
+            dropped = true;
+        }
+    }
     let Some(file) = value
         .as_object_mut()
         .and_then(|o| o.remove(OPENCV_MODEL_FILE_KEY))
     else {
-        return serde_json::from_str(&text).with_context(malformed);
+        if dropped {
+            return from_json_warning_unknown(value, path).with_context(malformed);
+        }
+        let mut de = serde_json::Deserializer::from_str(&text);
+        return from_json_warning_unknown(&mut de, path).with_context(malformed);
     };
     let field = |reason: String| {
         anyhow!(
@@ -47,7 +65,26 @@ pub fn read_inputs(path: &Path) -> Result<CalibrationInputs> {
             serde_json::to_value(&model).context("cannot convert the OpenCV model")?,
         );
     }
-    serde_json::from_value(value).with_context(malformed)
+    from_json_warning_unknown(value, path).with_context(malformed)
+}
+
+/// Deserialises `T`, printing a warning that names `path` and the field for every field `T`
+/// does not know (inputs written by other tools carry extra fields; SPEC section 5 allows them).
+pub fn from_json_warning_unknown<'de, T, D>(de: D, path: &Path) -> Result<T, D::Error>
+where
+    T: serde::Deserialize<'de>,
+    D: serde::Deserializer<'de>,
+{
+    serde_ignored::deserialize(de, |field| warn_unknown(path, &field.to_string()))
+}
+
+fn warn_unknown(path: &Path, field: &str) {
+    eprintln!(
+        "warning: {}: ignoring unknown field '{field}'",
+        path.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| path.display().to_string())
+    );
 }
 
 /// Reads an OpenCV camera model from a `cv::FileStorage` file (YAML or JSON, as OpenCV writes

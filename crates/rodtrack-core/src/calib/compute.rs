@@ -5,30 +5,53 @@
 //! the phase and angle offsets come from the reference pose.
 
 use super::file::{EnhancedParams, PaperParams, Residuals, RodCalibration};
-use super::inputs::RodInputs;
+use super::inputs::{KnownPose, RodInputs};
+use super::silhouette::{
+    edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
+};
+use super::travel::{fit_along, h_from_direction, AlongTravel, RodAxis};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
-use crate::line::{fit_line_tls, CurveModel, Knots, LinePoint, PaperLine};
+use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
 use crate::marker::{gray_decode, Marker};
 use crate::signal::{hysteresis, ncc_direct, paper_bandpass, PAPER_HYSTERESIS};
 use crate::track::{Mode, RodTracker};
 use crate::CoreError;
 use std::f64::consts::TAU;
 
-/// Knot spacing, mm.
-const KNOT_STEP_MM: f64 = 2.0;
 /// Knots extend this far beyond the marker's travel, mm.
 const KNOT_MARGIN_MM: f64 = 15.0;
-/// Assumed error of a clicked path point, px (the silhouettes are weighted against it).
-const CLICK_SIGMA_PX: f64 = 1.0;
 /// Default view angle for the paper's eq. (1) when no camera model is given, degrees.
 pub const DEFAULT_VIEW_ANGLE_DEG: f64 = 53.2;
 
-/// Calibrates one rod from its inputs and its reference frame.
+/// Calibrates one rod from its inputs and its reference frame (no known poses, no other
+/// rods: the along-travel scale is the reference pose's).
 pub fn calibrate_rod(
     inputs: &RodInputs,
     frame: &FrameView,
     intrinsics: Option<&CameraIntrinsics>,
+) -> Result<RodCalibration, CoreError> {
+    calibrate_rod_with(inputs, frame, intrinsics, &RodExtras::default())
+}
+
+/// What calibration may know of a rod beyond its reference frame.
+#[derive(Default)]
+pub struct RodExtras<'a> {
+    /// Frames with the rod at a known pose, each with that pose.
+    pub known: &'a [(KnownPose, FrameView<'a>)],
+    /// The 3-D direction the camera's rods share, in the camera frame (from
+    /// [`super::travel::common_direction`]), when there is a camera model.
+    pub direction: Option<[f64; 3]>,
+}
+
+/// Calibrates one rod from its inputs, its reference frame and what else is known of it:
+/// frames at known poses fix the scale over the whole travel (see [`super::travel`]), and so,
+/// without them, does the direction the camera's rods share.
+pub fn calibrate_rod_with(
+    inputs: &RodInputs,
+    frame: &FrameView,
+    intrinsics: Option<&CameraIntrinsics>,
+    extras: &RodExtras,
 ) -> Result<RodCalibration, CoreError> {
     let rod = inputs.rod;
     let fail = |reason: String| CoreError::CalibrationFailed { rod, reason };
@@ -193,33 +216,16 @@ pub fn calibrate_rod(
         };
         start_idx as f64 + dir as f64 * (u - u0) * px_per_mm0 * 2.0
     };
-    let mut edge_pts = Vec::new();
-    for (u_e, rising) in marker.barcode_edges_mm() {
-        let c_idx = u_start_idx(u_e);
-        let half = 0.5 * marker.cell_mm() * px_per_mm0; // px
-        let steps = 40usize;
-        let vals: Vec<(f64, f32)> = (0..=steps)
-            .map(|i| {
-                let off = -half + 2.0 * half * i as f64 / steps as f64; // px along
-                let l = lam_at(c_idx) + off * dl * 2.0;
-                let (x, y) = curve.point(l);
-                (l, frame.luma_bilinear(x as f32, y as f32))
-            })
-            .collect();
-        let level = 0.5 * (vals[0].1 + vals[steps].1);
-        // In +lambda the edge is falling (white to black) when rising==true and dir>0.
-        let falling = rising == (dir > 0);
-        let sign = if falling { 1.0f32 } else { -1.0 };
-        for w in vals.windows(2) {
-            let a = (level - w[0].1) * sign;
-            let b = (level - w[1].1) * sign;
-            if a <= 0.0 && b > 0.0 {
-                let f = (a / (a - b)) as f64;
-                edge_pts.push((u_e, w[0].0 + f * (w[1].0 - w[0].0)));
-                break;
-            }
-        }
-    }
+    let half_cell_px = 0.5 * marker.cell_mm() * px_per_mm0;
+    let edge_pts = refine_edges(
+        frame,
+        &curve,
+        &marker,
+        dir,
+        &|u| lam_at(u_start_idx(u)),
+        half_cell_px,
+        dl * 2.0,
+    );
     if edge_pts.len() < 6 {
         return Err(fail(format!(
             "only {} of the barcode's {} edges were found in the reference frame",
@@ -241,35 +247,17 @@ pub fn calibrate_rod(
             100.0 * spread_px / expected_px
         ));
     }
-    let scale_ratio =
-        (g.abs() / curve.lambda_per_px(l0)) / (marker.barcode_len_mm() * 0.0 + 1.0) / px_per_mm0;
+    let scale_ratio = (g.abs() / curve.lambda_per_px(l0)) / px_per_mm0;
     let s_ref = inputs.reference.position_mm;
-    let lambda_of_s = |s: f64| l0 + g * (s - s_ref);
-
-    // Knots of a path: centre and apparent radius every 2 mm along the axis.
-    let s0 = inputs.travel_mm[0] - KNOT_MARGIN_MM;
-    let s1 = inputs.travel_mm[1] + marker.length_mm() + KNOT_MARGIN_MM;
-    let nk = ((s1 - s0) / KNOT_STEP_MM).ceil() as usize + 1;
-    let make_knots = |curve: &CurveModel, radius_ratio: f64| {
-        let mut kx = Vec::with_capacity(nk);
-        let mut ky = Vec::with_capacity(nk);
-        let mut kr = Vec::with_capacity(nk);
-        for i in 0..nk {
-            let s = s0 + i as f64 * KNOT_STEP_MM;
-            let (x, y) = curve.point(lambda_of_s(s));
-            let (x2, y2) = curve.point(lambda_of_s(s + 0.5));
-            let ppm = ((x2 - x).powi(2) + (y2 - y).powi(2)).sqrt() / 0.5;
-            kx.push(x);
-            ky.push(y);
-            kr.push(marker.radius_mm() * ppm * radius_ratio);
-        }
-        Knots {
-            s0_mm: s0,
-            step_mm: KNOT_STEP_MM,
-            x_px: kx,
-            y_px: ky,
-            radius_px: kr,
-        }
+    let mut along = AlongTravel {
+        l0,
+        g,
+        h: 0.0,
+        s_ref_mm: s_ref,
+    };
+    let knot_range = KnotRange {
+        s0: inputs.travel_mm[0] - KNOT_MARGIN_MM,
+        s1: inputs.travel_mm[1] + marker.length_mm() + KNOT_MARGIN_MM,
     };
 
     // The rod's centre line and apparent radius from the silhouettes of the marker's rings
@@ -278,65 +266,11 @@ pub fn calibrate_rod(
     // direction. The phase needs the centre to a few hundredths of a pixel wherever the marker
     // goes (a centre off by `e` px across a rod of apparent radius `R` px turns the angle by
     // about `e / R`), which a few clicks of about 1 px cannot give.
-    let mut radius_ratio = 1.0;
-    let mut silhouette = None;
-    for _ in 0..5 {
-        let knots = make_knots(&curve, 1.0);
-        let Some(fit) = fit_silhouette(frame, &knots, &marker, s_ref) else {
-            break;
-        };
-        radius_ratio = fit.radius_ratio;
-        let lam_c = lambda_of_s(fit.s_mean_mm);
-        // Observations: lateral offset (px, along the knots' normal) at lambda, and weight.
-        let mut obs: Vec<(f64, f64, f64)> = fit
-            .rows
-            .iter()
-            .map(|&(s, c)| (lambda_of_s(s), c, fit.weight))
-            .collect();
-        for p in &used {
-            let lam = curve.project(*p);
-            let (x, y) = curve.point(lam);
-            let lp = knots.at(s_ref + (lam - l0) / g);
-            let off = (p[0] - x) * -lp.ty + (p[1] - y) * lp.tx;
-            obs.push((lam, off, 1.0 / (CLICK_SIGMA_PX * CLICK_SIGMA_PX)));
-        }
-        let lam_span = obs
-            .iter()
-            .map(|o| (o.0 - lam_c).abs())
-            .fold(0.0, f64::max)
-            .max(1e-9);
-        let ha = curve.lambda_per_px(lam_c);
-        let hb = ha / lam_span;
-        let ca = curve.shifted(ha, 0.0, lam_c);
-        let cb = curve.shifted(0.0, hb, lam_c);
-        let (mut m00, mut m01, mut m11, mut r0, mut r1) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for &(lam, off, w) in &obs {
-            let (x, y) = curve.point(lam);
-            let lp = knots.at(s_ref + (lam - l0) / g);
-            let (nx, ny) = (-lp.ty, lp.tx);
-            let pa = ca.point(lam);
-            let pb = cb.point(lam);
-            let ga = (pa.0 - x) * nx + (pa.1 - y) * ny;
-            let gb = (pb.0 - x) * nx + (pb.1 - y) * ny;
-            m00 += w * ga * ga;
-            m01 += w * ga * gb;
-            m11 += w * gb * gb;
-            r0 += w * ga * off;
-            r1 += w * gb * off;
-        }
-        let det = m00 * m11 - m01 * m01;
-        if det.is_nan() || det.abs() <= 1e-12 * (m00 * m11).max(1e-300) {
-            break;
-        }
-        let a = (m11 * r0 - m01 * r1) / det;
-        let b = (m00 * r1 - m01 * r0) / det;
-        curve = curve.shifted(a * ha, b * hb, lam_c);
-        silhouette = Some(fit);
-        if a.abs().max(b.abs()) < 0.005 {
-            break;
-        }
-    }
-    let knots = make_knots(&curve, radius_ratio);
+    let reference_pose = [(frame, s_ref)];
+    let (c, silhouette) =
+        refine_centre_line(curve, &along, &knot_range, &reference_pose, &used, &marker);
+    curve = c;
+    let mut radius_ratio = silhouette.as_ref().map_or(1.0, |f| f.radius_ratio);
     if let Some(f) = silhouette.as_ref().filter(|f| f.rms_px > 0.3) {
         warnings.push(format!(
             "the rod's silhouette along the marker scatters by {:.2} px around a line: check \
@@ -352,6 +286,77 @@ pub fn calibrate_rod(
         );
     }
 
+    // Along the travel: the known poses' barcodes, else the parallel rods' direction.
+    let mut travel_model = "affine";
+    let h_from_rods = match (&curve, extras.direction) {
+        (CurveModel::Camera { n0, d, .. }, Some(dir3)) => {
+            let n_ref = [n0[0] + l0 * d[0], n0[1] + l0 * d[1]];
+            h_from_direction(dir3, n_ref, *d, g)
+        }
+        _ => None,
+    };
+    if !extras.known.is_empty() {
+        let mut pts: Vec<(f64, f64)> = edge_pts.iter().map(|&(u, l)| (s_ref + u, l)).collect();
+        let mut poses: Vec<(&FrameView, f64)> = vec![(frame, s_ref)];
+        for (kp, kframe) in extras.known {
+            match edges_at_pose(
+                kframe,
+                &curve,
+                &along,
+                &marker,
+                dir,
+                kp.position_mm,
+                dl * 2.0,
+            ) {
+                Some(e) if e.len() >= 6 => {
+                    pts.extend(e);
+                    poses.push((kframe, kp.position_mm));
+                }
+                found => warnings.push(format!(
+                    "known pose in frame {}: only {} barcode edges found near {:.1} mm; pose \
+                     not used",
+                    kp.frame,
+                    found.map_or(0, |e| e.len()),
+                    kp.position_mm
+                )),
+            }
+        }
+        if poses.len() > 1 {
+            if let Some((a, _)) = fit_along(&pts, s_ref) {
+                along = a;
+                travel_model = "known_poses";
+            }
+            let (c, _) = refine_centre_line(curve, &along, &knot_range, &poses, &used, &marker);
+            curve = c;
+        }
+    } else if let Some(h) = h_from_rods {
+        along.h = h;
+        travel_model = "vanishing_direction";
+    }
+    let radius_model = match (&curve, std::env::var("RT_RADIUS").as_deref()) {
+        (CurveModel::Camera { .. }, Ok("measured")) => RadiusModel::Measured(radius_ratio),
+        (CurveModel::Camera { intrinsics, n0, d }, _) => match RodAxis::new(*n0, *d, &along) {
+            Some(axis) => RadiusModel::Geometric(*intrinsics, axis),
+            None => RadiusModel::Measured(radius_ratio),
+        },
+        _ => RadiusModel::Measured(radius_ratio),
+    };
+    let knots = make_knots(&curve, &along, &knot_range, &marker, &radius_model);
+    if let RadiusModel::Geometric(..) = radius_model {
+        // The silhouette's width against the lens' prediction (shading moves a ring's
+        // half-level edges: a check, not a correction).
+        radius_ratio = silhouette.as_ref().map_or(1.0, |f| {
+            let predicted = make_knots(
+                &curve,
+                &along,
+                &knot_range,
+                &marker,
+                &RadiusModel::Measured(1.0),
+            );
+            let s = f.s_mean_mm;
+            f.radius_ratio * predicted.at(s).radius_px / knots.at(s).radius_px
+        });
+    }
     // Direction of the print across the rod: Gray code read on both sides of the centre line.
     let vote = print_direction(frame, &knots, &marker, s_ref);
 
@@ -441,9 +446,28 @@ pub fn calibrate_rod(
         reference_ncc: ncc as f64,
         reference_code_phase_steps: code_phase,
         radius_ratio,
+        travel_model: travel_model.to_string(),
+        depth_change_per_m: along.h * 1000.0,
+        depth_change_per_m_from_rods: h_from_rods.map(|h| h * 1000.0),
+        known_pose_errors_mm: Vec::new(),
         warnings,
     };
     cal.validate(frame.width(), frame.height())?;
+    // The known poses read back with the final calibration.
+    for (kp, kframe) in extras.known {
+        let mut t = RodTracker::new(&cal, kframe.width(), kframe.height(), Mode::Enhanced)?;
+        let r = t.process(kframe)?;
+        if r.status == crate::Status::Ok {
+            cal.residuals
+                .known_pose_errors_mm
+                .push([kp.frame as f64, r.position_mm - kp.position_mm]);
+        } else {
+            cal.residuals.warnings.push(format!(
+                "known pose in frame {} reads as {}",
+                kp.frame, r.status
+            ));
+        }
+    }
     Ok(cal)
 }
 
@@ -657,195 +681,4 @@ fn paper_params(
         (r1.theta_steps * TAU / marker.steps() as f64 - cal.reference_angle_rad).rem_euclid(TAU);
     let _ = fit_line_tls;
     Ok(p)
-}
-
-/// The rod's silhouette along the marker in the reference frame.
-struct SilhouetteFit {
-    /// `(s, lateral offset)` of every kept row, px along the knots' normal, both polarities
-    /// brought to one centre.
-    rows: Vec<(f64, f64)>,
-    /// Least-squares weight of one row (1 / px^2, thinned for rows closer than a pixel).
-    weight: f64,
-    /// Mean `s` of the rows, mm.
-    s_mean_mm: f64,
-    /// RMS of the rows around their line, px.
-    rms_px: f64,
-    /// Apparent radius over the knots' predicted one.
-    radius_ratio: f64,
-}
-
-/// Rows across the marker's full rings (white: quiet zones, the barcode's white cells, the gap;
-/// black: the barcode's black cells), `margin_mm` inside their ends, every `step_mm`: `(u,
-/// white)`.
-fn ring_rows_all(marker: &Marker, margin_mm: f64, step_mm: f64) -> Vec<(f64, bool)> {
-    let mut zones: Vec<(f64, f64, bool)> = Vec::new();
-    let bc0 = marker.barcode_start_mm();
-    let cell = marker.cell_mm();
-    zones.push((0.0, bc0, true));
-    let k = marker.kernel();
-    let mut i = 0;
-    while i < k.len() {
-        let j = (i..k.len()).find(|&j| k[j] != k[i]).unwrap_or(k.len());
-        zones.push((bc0 + i as f64 * cell, bc0 + j as f64 * cell, !k[i]));
-        i = j;
-    }
-    let gray_end = marker.gray_start_mm() + marker.bits() as f64 * marker.bit_space_mm();
-    zones.push((bc0 + marker.barcode_len_mm(), marker.gray_start_mm(), true));
-    zones.push((gray_end, marker.length_mm(), true));
-    let mut rows = Vec::new();
-    for (a, b, white) in zones {
-        let (a, b) = (a + margin_mm, b - margin_mm);
-        if b < a {
-            continue;
-        }
-        let n = ((b - a) / step_mm).floor() as usize;
-        let off = 0.5 * (b - a - n as f64 * step_mm);
-        for q in 0..=n {
-            rows.push((a + off + q as f64 * step_mm, white));
-        }
-    }
-    rows
-}
-
-/// The silhouette of a full ring across the rod at `lp`, bright (white print) or dark (black
-/// print): the careful scan of calibration (0.25 px steps over 0.7 R .. 1.4 R).
-fn ring_silhouette_any(frame: &FrameView, lp: &LinePoint, bright: bool) -> Option<(f64, f64)> {
-    crate::track::ring_silhouette_scan(
-        frame,
-        lp,
-        &crate::track::SilhouetteScan {
-            bright,
-            step_px: 0.25,
-            min_contrast: 12.0,
-            from_radii: 0.7,
-            span_radii: 0.7,
-        },
-    )
-}
-
-/// Measures the silhouette of the marker's rings along its whole length at the reference pose
-/// and fits `offset(s) = a_polarity + b (s - mean s)` robustly (white and black rings get their
-/// own offset: the shading across the rod moves a white ring's edges more than a black one's).
-/// The centre is the black rings' when there are enough of them, else the white ones'. `None`
-/// when too few rows stand out or they span too little of the marker.
-fn fit_silhouette(
-    frame: &FrameView,
-    knots: &Knots,
-    marker: &Marker,
-    s_ref: f64,
-) -> Option<SilhouetteFit> {
-    let step_mm = 0.5;
-    let mut rows: Vec<(f64, f64, f64, bool)> = Vec::new(); // (s, c, ratio, white)
-    for (u, white) in ring_rows_all(marker, 1.0, step_mm) {
-        let s = s_ref + u;
-        let lp = knots.at(s);
-        if let Some((c, hw)) = ring_silhouette_any(frame, &lp, white) {
-            rows.push((s, c, hw / lp.radius_px, white));
-        }
-    }
-    let mut keep = vec![true; rows.len()];
-    let mut coef = (0.0, 0.0, 0.0, 0.0); // (a_white, a_black, b, s_mean)
-    let mut rms = f64::NAN;
-    for _ in 0..4 {
-        let kept: Vec<&(f64, f64, f64, bool)> = rows
-            .iter()
-            .zip(&keep)
-            .filter(|(_, k)| **k)
-            .map(|(r, _)| r)
-            .collect();
-        let n = kept.len();
-        if n < 8 {
-            return None;
-        }
-        let sm = kept.iter().map(|r| r.0).sum::<f64>() / n as f64;
-        let spread = kept.iter().map(|r| r.0).fold(f64::MIN, f64::max)
-            - kept.iter().map(|r| r.0).fold(f64::MAX, f64::min);
-        if spread < 0.4 * marker.length_mm() {
-            return None;
-        }
-        // Normal equations for (a_white, a_black, b).
-        let mut m = vec![vec![0.0f64; 4]; 3];
-        let (mut nw, mut nb) = (0usize, 0usize);
-        for r in &kept {
-            let x = [
-                if r.3 { 1.0 } else { 0.0 },
-                if r.3 { 0.0 } else { 1.0 },
-                r.0 - sm,
-            ];
-            for i in 0..3 {
-                for j in 0..3 {
-                    m[i][j] += x[i] * x[j];
-                }
-                m[i][3] += x[i] * r.1;
-            }
-            if r.3 {
-                nw += 1;
-            } else {
-                nb += 1;
-            }
-        }
-        let sol = if nw == 0 || nb == 0 {
-            // One polarity only: a single offset.
-            let i = if nw == 0 { 1 } else { 0 };
-            let mm = vec![
-                vec![m[i][i], m[i][2], m[i][3]],
-                vec![m[2][i], m[2][2], m[2][3]],
-            ];
-            let s2 = crate::line::solve(mm)?;
-            vec![s2[0], s2[0], s2[1]]
-        } else {
-            crate::line::solve(m)?
-        };
-        coef = (sol[0], sol[1], sol[2], sm);
-        let resid: Vec<f64> = rows
-            .iter()
-            .map(|r| r.1 - (if r.3 { sol[0] } else { sol[1] }) - sol[2] * (r.0 - sm))
-            .collect();
-        let mut abs: Vec<f64> = resid
-            .iter()
-            .zip(&keep)
-            .filter(|(_, k)| **k)
-            .map(|(e, _)| e.abs())
-            .collect();
-        abs.sort_by(|a, b| a.total_cmp(b));
-        let mad = abs[abs.len() / 2] * 1.4826;
-        rms = (abs.iter().map(|e| e * e).sum::<f64>() / abs.len() as f64).sqrt();
-        let limit = (4.0 * mad).max(0.05);
-        let new_keep: Vec<bool> = resid.iter().map(|e| e.abs() <= limit).collect();
-        if new_keep == keep {
-            break;
-        }
-        keep = new_keep;
-    }
-    let (aw, ab, b, sm) = coef;
-    let n_black = rows.iter().zip(&keep).filter(|(r, k)| **k && !r.3).count();
-    let centre = if n_black >= 6 { ab } else { aw };
-    let kept: Vec<(f64, f64, f64, bool)> = rows
-        .iter()
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|(r, _)| *r)
-        .collect();
-    // The radius: from the black rings when there are enough (their edges do not fade into the
-    // shading), else from the white ones.
-    let ratios: Vec<f64> = kept
-        .iter()
-        .filter(|r| (n_black >= 6) != r.3)
-        .map(|r| r.2)
-        .collect();
-    let radius_ratio = ratios.iter().sum::<f64>() / ratios.len().max(1) as f64;
-    let ppm = knots.at(sm).px_per_mm;
-    let thin = (step_mm * ppm).min(1.0);
-    let sigma = rms.max(0.02);
-    Some(SilhouetteFit {
-        rows: kept
-            .iter()
-            .map(|r| (r.0, r.1 - if r.3 { aw } else { ab } + centre))
-            .collect(),
-        weight: thin / (sigma * sigma),
-        s_mean_mm: sm,
-        rms_px: rms,
-        radius_ratio: if ratios.is_empty() { 1.0 } else { radius_ratio },
-    })
-    .filter(|_| b.is_finite())
 }

@@ -72,6 +72,22 @@ pub struct Residuals {
     pub reference_code_phase_steps: f64,
     /// Apparent rod radius measured from the silhouette over the predicted one.
     pub radius_ratio: f64,
+    /// How the line's scale is carried along the travel: `known_poses` (fitted to the
+    /// barcode's edges at the known poses), `vanishing_direction` (from the camera's parallel
+    /// rods) or `affine` (the reference pose's scale).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub travel_model: String,
+    /// Relative change of depth along the rod, per metre (`h` of the travel model times 1000).
+    #[serde(default)]
+    pub depth_change_per_m: f64,
+    /// What the camera's parallel rods predict for `depth_change_per_m` (a cross-check of the
+    /// known poses' fit), when there is a camera model and enough rods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_change_per_m_from_rods: Option<f64>,
+    /// At each known pose: `[frame, position error mm]` of the barcode read with the final
+    /// calibration against the pose given.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub known_pose_errors_mm: Vec<[f64; 2]>,
     /// Warnings for the operator.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,

@@ -18,7 +18,6 @@ pub const OPENCV_MODEL_FILE_KEY: &str = "opencv_model_file";
 
 /// Image size in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ImageSize {
     /// Width, px.
     pub width: usize,
@@ -50,7 +49,6 @@ impl<'de> Deserialize<'de> for OpencvModel {
 
 /// Where the reference frames are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ReferenceFrames {
     /// Folder of images, relative to the JSON file.
     pub dir: String,
@@ -60,7 +58,6 @@ pub struct ReferenceFrames {
 
 /// A rod's known pose in a reference frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ReferencePose {
     /// Frame index in the reference folder (name order).
     pub frame: usize,
@@ -74,7 +71,6 @@ pub struct ReferencePose {
 
 /// One rod's calibration inputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct RodInputs {
     /// Rod id.
     pub rod: u32,
@@ -86,11 +82,66 @@ pub struct RodInputs {
     pub reference: ReferencePose,
     /// The marker on this rod.
     pub marker: MarkerSpec,
+    /// Frames of the reference folder in which the rod stands at a known pose (for example
+    /// against its end stops): they fix the along-travel model, and `calibrate` prints the
+    /// residual at each.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub known_poses: Vec<KnownPose>,
+    /// The frames of the reference folder where the rod stands at its travel's start, middle
+    /// (0) and end: the same as three [`KnownPose`]s without an angle.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub travel_frames: Option<TravelFrames>,
+}
+
+/// A frame of the reference folder in which a rod stands at a known pose.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KnownPose {
+    /// Frame index in the reference folder (name order).
+    pub frame: usize,
+    /// Known position, mm (same zero as `position_mm`).
+    pub position_mm: f64,
+    /// Known angle, rad, when known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_rad: Option<f64>,
+}
+
+/// The frames of the reference folder where a rod stands at its travel's start, middle and end.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TravelFrames {
+    /// Frame with the rod at `travel_mm[0]`.
+    pub min: usize,
+    /// Frame with the rod at position 0.
+    pub zero: usize,
+    /// Frame with the rod at `travel_mm[1]`.
+    pub max: usize,
+}
+
+impl RodInputs {
+    /// Every known pose of the rod: `known_poses`, then those `travel_frames` gives (position
+    /// only), in that order, without duplicates of the same frame.
+    pub fn all_known_poses(&self) -> Vec<KnownPose> {
+        let mut out = self.known_poses.clone();
+        if let Some(t) = self.travel_frames {
+            for (frame, position_mm) in [
+                (t.min, self.travel_mm[0]),
+                (t.zero, 0.0),
+                (t.max, self.travel_mm[1]),
+            ] {
+                if !out.iter().any(|k| k.frame == frame) {
+                    out.push(KnownPose {
+                        frame,
+                        position_mm,
+                        angle_rad: None,
+                    });
+                }
+            }
+        }
+        out
+    }
 }
 
 /// One camera's calibration inputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct CalibrationInputs {
     /// Camera name.
     pub camera_name: String,

@@ -5,12 +5,17 @@ pub mod file;
 pub mod find;
 pub mod inputs;
 pub mod opencv;
+pub mod rods;
+mod silhouette;
+pub mod travel;
 
-pub use compute::{calibrate_rod, DEFAULT_VIEW_ANGLE_DEG};
+pub use compute::{calibrate_rod, calibrate_rod_with, RodExtras, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{
     CalibrationFile, CameraCalibration, EnhancedParams, PaperParams, Residuals, RodCalibration,
     CALIBRATION_VERSION,
 };
 pub use inputs::{
-    CalibrationInputs, ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
+    CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose,
+    RodInputs, TravelFrames,
 };
+pub use rods::calibrate_rods;

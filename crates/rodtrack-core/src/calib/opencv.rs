@@ -109,6 +109,14 @@ const DIST_NAMES: &str = "distortion_coefficients, dist_coeffs, distCoeffs or D"
 /// Names of OpenCV's distortion coefficients from the sixth on.
 const HIGHER_NAMES: [&str; 9] = ["k4", "k5", "k6", "s1", "s2", "s3", "s4", "tauX", "tauY"];
 
+/// True when `key` names a camera matrix or distortion coefficients in any of the spellings
+/// an OpenCV model is read from (other keys of an inline model are refused by the strict
+/// reader; a loader that accepts other tools' files drops them with a warning first).
+pub fn is_model_key(key: &str) -> bool {
+    let n = normalise_key(key);
+    CAMERA_KEYS.contains(&n.as_str()) || DIST_KEYS.contains(&n.as_str())
+}
+
 fn normalise_key(k: &str) -> String {
     k.chars()
         .filter(|c| *c != '_' && *c != '-')
