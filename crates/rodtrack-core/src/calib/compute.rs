@@ -333,13 +333,14 @@ pub fn calibrate_rod_with(
         along.h = h;
         travel_model = "vanishing_direction";
     }
-    let radius_model = match (&curve, std::env::var("RT_RADIUS").as_deref()) {
-        (CurveModel::Camera { .. }, Ok("measured")) => RadiusModel::Measured(radius_ratio),
-        (CurveModel::Camera { intrinsics, n0, d }, _) => match RodAxis::new(*n0, *d, &along) {
+    // With a camera model the radius is the cylinder's projection; without one, what the
+    // reference frame's silhouette measured.
+    let radius_model = match &curve {
+        CurveModel::Camera { intrinsics, n0, d } => match RodAxis::new(*n0, *d, &along) {
             Some(axis) => RadiusModel::Geometric(*intrinsics, axis),
             None => RadiusModel::Measured(radius_ratio),
         },
-        _ => RadiusModel::Measured(radius_ratio),
+        CurveModel::Poly { .. } => RadiusModel::Measured(radius_ratio),
     };
     let knots = make_knots(&curve, &along, &knot_range, &marker, &radius_model);
     if let RadiusModel::Geometric(..) = radius_model {

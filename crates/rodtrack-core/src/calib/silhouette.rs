@@ -201,9 +201,12 @@ pub(super) fn refine_centre_line(
     let mut first = None;
     for _ in 0..5 {
         let knots = make_knots(&curve, along, range, marker, &RadiusModel::Measured(1.0));
-        let mut fits = Vec::new();
+        let mut fits: Vec<SilhouetteFit> = Vec::new();
         for (k, (frame, s_base)) in poses.iter().enumerate() {
-            match fit_silhouette(frame, &knots, marker, *s_base) {
+            // Every pose's centre from the rings of the reference's polarity: the two
+            // polarities' centres differ by the shading's bias.
+            let polarity = fits.first().map(|f| f.white);
+            match fit_silhouette(frame, &knots, marker, *s_base, polarity) {
                 Some(f) => fits.push(f),
                 None if k == 0 => return (curve, first),
                 None => {}
@@ -283,6 +286,8 @@ pub(super) struct SilhouetteFit {
     pub rms_px: f64,
     /// Apparent radius over the knots' predicted one.
     pub radius_ratio: f64,
+    /// True when the centre and radius are the white rings'.
+    pub white: bool,
 }
 
 /// Rows across the marker's full rings (white: quiet zones, the barcode's white cells, the gap;
@@ -349,6 +354,7 @@ fn fit_silhouette(
     knots: &Knots,
     marker: &Marker,
     s_ref: f64,
+    polarity: Option<bool>,
 ) -> Option<SilhouetteFit> {
     let step_mm = 0.5;
     let mut rows: Vec<(f64, f64, f64, bool)> = Vec::new(); // (s, c, ratio, white)
@@ -451,7 +457,10 @@ fn fit_silhouette(
     let (aw, ab, b, sm) = coef;
     let n_black = rows.iter().zip(&keep).filter(|(r, k)| **k && !r.3).count();
     let n_white = rows.iter().zip(&keep).filter(|(r, k)| **k && r.3).count();
-    let use_black = n_black >= 6 && (black_contrast >= white_contrast || n_white < 6);
+    let use_black = match polarity {
+        Some(white) => !white && n_black >= 6,
+        None => n_black >= 6 && (black_contrast >= white_contrast || n_white < 6),
+    };
     let centre = if use_black { ab } else { aw };
     let kept: Vec<(f64, f64, f64, bool)> = rows
         .iter()
@@ -477,6 +486,7 @@ fn fit_silhouette(
         s_mean_mm: sm,
         rms_px: rms,
         radius_ratio: if ratios.is_empty() { 1.0 } else { radius_ratio },
+        white: !use_black,
     })
     .filter(|_| b.is_finite())
 }
