@@ -4,7 +4,8 @@
 //! - `<cam>/NNNNNN.png`: every frame written (Bayer raw as 8-bit grey, mono8 grey, rgb8
 //!   colour); the number is the frame id, the frame's index in the scenario's timeline (so
 //!   `id / fps` is its capture time even when only every K-th frame is written);
-//! - `<cam>_ref/000000.png`: the reference frame (rods at their reference poses, no hands);
+//! - `<cam>_ref/000000.png`: the reference frame (rods at their reference poses, no hands),
+//!   and with known poses `000001.png` ...: one rod at a time at its travel's ends and middle;
 //! - `<cam>.json`: calibration inputs (SPEC section 5);
 //! - `<cam>_intrinsics.yml`: the camera's true model as OpenCV's `cv::FileStorage` writes it
 //!   after `calibrateCamera` (when the calibration inputs hold the model);
@@ -184,6 +185,19 @@ pub fn write_recording(
             meta.format,
             opts.png_fast,
         )?;
+        if opts.calib.known_poses {
+            for (frame, rod, position_mm) in sim.known_pose_frames() {
+                let meta = sim.render_known_pose(ci, rod, position_mm, buf)?;
+                write_png(
+                    &rdir.join(format!("{frame:06}.png")),
+                    buf,
+                    meta.width,
+                    meta.height,
+                    meta.format,
+                    opts.png_fast,
+                )?;
+            }
+        }
         let inputs = sim.calibration_inputs_with(ci, opts.calib_seed, &opts.calib)?;
         let p = out_dir.join(format!("{}.json", cam.name));
         let text = serde_json::to_string_pretty(&inputs).map_err(|e| io_err(&p, e))?;

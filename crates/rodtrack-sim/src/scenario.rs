@@ -101,8 +101,9 @@ pub struct Scenario {
 }
 
 /// Names accepted by [`Scenario::by_name`].
-pub const SCENARIO_NAMES: [&str; 9] = [
+pub const SCENARIO_NAMES: [&str; 10] = [
     "exp1", "exp2", "exp3", "spin600", "spin3000", "lighting", "gameplay", "sweep", "static",
+    "poses",
 ];
 
 impl Scenario {
@@ -244,6 +245,26 @@ impl Scenario {
                     s.rods[i].position = p.build();
                     let mut a = TrackBuilder::new(0.0);
                     a.hold(0.5).spin(0.6, 0.5);
+                    s.rods[i].angle = a.build();
+                }
+            }
+            "poses" => {
+                // Every frame a new random pose of every rod over its whole travel and any
+                // angle, held still through the frame's exposure (absolute accuracy: nothing
+                // to learn from frame to frame). Frame 0 is the reference pose.
+                let frames = 40usize;
+                let dt = 1.0 / s.fps;
+                end = frames as f64 * dt;
+                for (i, &h) in halves.iter().enumerate() {
+                    let mut p = TrackBuilder::new(0.0);
+                    let mut a = TrackBuilder::new(0.0);
+                    p.hold(0.5 * dt);
+                    a.hold(0.5 * dt);
+                    for _ in 1..frames {
+                        p.move_to(rng.range(-h, h), 1e9, 1e15).hold(dt);
+                        a.move_to(rng.range(0.0, TAU), 1e9, 1e15).hold(dt);
+                    }
+                    s.rods[i].position = p.build();
                     s.rods[i].angle = a.build();
                 }
             }

@@ -8,7 +8,7 @@ use crate::scenario::Scenario;
 use crate::scene::{Lighting, SceneConfig};
 use crate::SimError;
 use rodtrack_core::calib::{
-    CalibrationInputs, ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
+    CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
 };
 use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
 use serde::{Deserialize, Serialize};
@@ -49,6 +49,8 @@ pub struct CalibOptions {
     pub click_noise_px: f64,
     /// Path points per rod (3 to 5).
     pub points_per_rod: usize,
+    /// List the known-pose frames ([`Simulation::known_pose_frames`]) in the inputs.
+    pub known_poses: bool,
 }
 
 impl Default for CalibOptions {
@@ -57,6 +59,7 @@ impl Default for CalibOptions {
             include_opencv_model: true,
             click_noise_px: 1.0,
             points_per_rod: 4,
+            known_poses: false,
         }
     }
 }
@@ -286,6 +289,50 @@ impl Simulation {
                 count: self.ctx.cameras.len(),
             })?;
         self.ctx.render_reference(r, camera_index, out)
+    }
+
+    /// The frames of the reference folder with one rod at a known pose, as the validation
+    /// tables have them: frames `1 + 3 k`, `2 + 3 k`, `3 + 3 k` hold rod `k` at the start, the
+    /// middle (0) and the end of its travel, every other rod at its reference pose. Returns
+    /// `(frame, rod, position_mm)`.
+    pub fn known_pose_frames(&self) -> Vec<(usize, usize, f64)> {
+        self.ctx
+            .scene
+            .rods
+            .iter()
+            .enumerate()
+            .flat_map(|(i, r)| {
+                known_pose_list(i, r.half_travel_mm())
+                    .into_iter()
+                    .map(move |(f, p)| (f, i, p))
+            })
+            .collect()
+    }
+
+    /// Renders camera `camera_index` with every rod at its reference pose but `rod`, which
+    /// stands at `position_mm` (a known-pose frame of the reference folder).
+    pub fn render_known_pose(
+        &mut self,
+        camera_index: usize,
+        rod: usize,
+        position_mm: f64,
+        out: &mut [u8],
+    ) -> Result<FrameMeta, SimError> {
+        let mut poses = self.ctx.reference.clone();
+        let p = poses.get_mut(rod).ok_or_else(|| {
+            SimError::Config(format!(
+                "no rod {rod} (the scene has {})",
+                self.ctx.reference.len()
+            ))
+        })?;
+        p.0 = position_mm;
+        let st = WorldState::posed(&poses);
+        self.render_state(camera_index, &st, u64::MAX - 1 - rod as u64, out)
+            .map(|m| FrameMeta {
+                frame_id: 0,
+                timestamp_s: 0.0,
+                ..m
+            })
     }
 
     /// Renders camera `camera_index` with the world in an arbitrary state (no motion blur),
@@ -704,7 +751,18 @@ impl Ctx {
                     position_mm: rp,
                     angle_rad: ra,
                 },
-                known_poses: Vec::new(),
+                known_poses: if opts.known_poses {
+                    known_pose_list(i, h)
+                        .into_iter()
+                        .map(|(frame, position_mm)| KnownPose {
+                            frame,
+                            position_mm,
+                            angle_rad: Some(ra),
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                },
                 travel_frames: None,
                 marker: self.scene.marker_spec_for(i),
             });
@@ -729,4 +787,13 @@ impl Ctx {
             rods,
         })
     }
+}
+
+/// Rod `i`'s known-pose frames and positions: `(1 + 3 i, -h)`, `(2 + 3 i, 0)`, `(3 + 3 i, h)`.
+fn known_pose_list(i: usize, half_travel_mm: f64) -> [(usize, f64); 3] {
+    [
+        (1 + 3 * i, -half_travel_mm),
+        (2 + 3 * i, 0.0),
+        (3 + 3 * i, half_travel_mm),
+    ]
 }

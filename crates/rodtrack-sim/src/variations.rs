@@ -14,7 +14,7 @@ pub const VARIATION_NAMES: [&str; 6] = [
     "thick_rod",
 ];
 
-/// Applies a named variation:
+/// Applies a named variation (or `asbuilt:SEED`, see [`as_built`]):
 /// - `yaw180`: every camera turned by 180 degrees about its viewing axis (same place);
 /// - `flipped_markers`: every marker's `u` axis reversed (centre kept);
 /// - `strong_distortion`: `k1 = -0.35` on every camera;
@@ -25,6 +25,15 @@ pub fn apply_variation(
     scene: &mut SceneConfig,
     cameras: &mut [SimCamera],
 ) -> Result<(), SimError> {
+    if let Some(seed) = name.strip_prefix("asbuilt:") {
+        let seed: u64 = seed.parse().map_err(|_| {
+            SimError::Config(format!(
+                "setup variation `{name}`: `asbuilt:` takes a whole number seed"
+            ))
+        })?;
+        as_built(seed, scene, cameras);
+        return Ok(());
+    }
     match name {
         "default" => {}
         "yaw180" => {
@@ -69,6 +78,67 @@ pub fn apply_variation(
         }
     }
     Ok(())
+}
+
+/// A table as built rather than as drawn, drawn at random from `seed`: each camera tilted up
+/// to 4 degrees about both image axes and turned up to 3 degrees about its viewing axis,
+/// shifted by up to 25 mm, its focal length within 3 %, `k1` in [-0.35, -0.15], its principal
+/// point up to 15 px off; each rod up to 1 mm off its place across the table and 0.5 mm in
+/// height; each marker's print at a random angle around its rod (the seam).
+pub fn as_built(seed: u64, scene: &mut SceneConfig, cameras: &mut [SimCamera]) {
+    let mut rng = crate::rng::Rng::new(seed ^ 0xA5B1_u64.rotate_left(40));
+    for c in cameras.iter_mut() {
+        let centre = c.camera.pose.centre_world();
+        let shift = [
+            rng.range(-25.0, 25.0),
+            rng.range(-25.0, 25.0),
+            rng.range(-25.0, 25.0),
+        ];
+        let centre = [
+            centre[0] + shift[0],
+            centre[1] + shift[1],
+            centre[2] + shift[2],
+        ];
+        let yaw = rng.range(-3.0, 3.0).to_radians();
+        let pitch = rng.range(-4.0, 4.0).to_radians();
+        let roll = rng.range(-4.0, 4.0).to_radians();
+        // The camera's own rotation composed in camera coordinates: about z (yaw), x (pitch:
+        // along the rods), y (roll: across them).
+        let (sy, cy) = yaw.sin_cos();
+        let (sp, cp) = pitch.sin_cos();
+        let (sr, cr) = roll.sin_cos();
+        let rz = [[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]];
+        let rx = [[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]];
+        let ry = [[cr, 0.0, sr], [0.0, 1.0, 0.0], [-sr, 0.0, cr]];
+        let r = mat(&ry, &mat(&rx, &mat(&rz, &c.camera.pose.rotation)));
+        let t: Vec<f64> = (0..3)
+            .map(|i| -(0..3).map(|k| r[i][k] * centre[k]).sum::<f64>())
+            .collect();
+        c.camera.pose.rotation = r;
+        c.camera.pose.translation_mm = [t[0], t[1], t[2]];
+        let k = &mut c.camera.intrinsics;
+        let f = k.fx * rng.range(0.97, 1.03);
+        k.fx = f;
+        k.fy = f;
+        k.cx += rng.range(-15.0, 15.0);
+        k.cy += rng.range(-15.0, 15.0);
+        k.k1 = rng.range(-0.35, -0.15);
+    }
+    for r in scene.rods.iter_mut() {
+        r.x_mm += rng.range(-1.0, 1.0);
+        r.z_mm += rng.range(-0.5, 0.5);
+        r.psi0_rad = rng.range(0.0, std::f64::consts::TAU);
+    }
+}
+
+fn mat(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            m[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
 }
 
 #[cfg(test)]

@@ -36,6 +36,14 @@ pub struct Args {
     /// Leave the OpenCV camera model out of the calibration inputs.
     #[arg(long)]
     pub no_opencv_model: bool,
+    /// Also write known-pose frames to the reference folder (frames 1+3k, 2+3k, 3+3k: rod k
+    /// at the start, middle and end of its travel) and list them in the calibration inputs.
+    #[arg(long)]
+    pub known_poses: bool,
+    /// The table as built: `default`, a named variation, or `asbuilt:SEED` (cameras tilted,
+    /// shifted and with other lenses, rods off their places, print seams; drawn from SEED).
+    #[arg(long, default_value = "default")]
+    pub setup: String,
 }
 
 /// Builds a simulation of the reference table.
@@ -45,7 +53,20 @@ pub fn build(
     seed: u64,
     quality: bool,
 ) -> Result<Simulation> {
-    let scene = SceneConfig::default();
+    build_setup(scenario, frames, seed, quality, "default")
+}
+
+/// [`build`] on a table set up as `setup` says (see [`rodtrack_sim::apply_variation`]).
+pub fn build_setup(
+    scenario: &str,
+    frames: Option<usize>,
+    seed: u64,
+    quality: bool,
+    setup: &str,
+) -> Result<Simulation> {
+    let mut scene = SceneConfig::default();
+    let mut cameras = default_cameras();
+    rodtrack_sim::apply_variation(setup, &mut scene, &mut cameras)?;
     let mut sc = Scenario::by_name(scenario, &scene, seed)?;
     if let Some(n) = frames {
         sc = sc.with_frames(n);
@@ -55,7 +76,7 @@ pub fn build(
     } else {
         RenderMode::Fast
     };
-    Ok(Simulation::new(scene, default_cameras(), sc, mode)?.with_seed(seed))
+    Ok(Simulation::new(scene, cameras, sc, mode)?.with_seed(seed))
 }
 
 /// Calibrates camera `c` of a simulation as an operator would: its simulated clicks (about
@@ -83,12 +104,19 @@ pub fn calibrate_sim_camera(
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let mut sim = build(&args.scenario, args.frames, args.seed, args.quality)?;
+    let mut sim = build_setup(
+        &args.scenario,
+        args.frames,
+        args.seed,
+        args.quality,
+        &args.setup,
+    )?;
     let opts = RecordOptions {
         every: args.every,
         calib_seed: args.seed,
         calib: CalibOptions {
             include_opencv_model: !args.no_opencv_model,
+            known_poses: args.known_poses,
             ..CalibOptions::default()
         },
         ..RecordOptions::default()

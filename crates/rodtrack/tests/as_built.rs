@@ -1,0 +1,205 @@
+//! Accuracy on tables as built, not as drawn: random setups of the simulator (cameras tilted
+//! about both axes and yawed, shifted, other lenses, rods off their places, print seams),
+//! through the command line as a user runs it: `simulate --scenario poses --setup asbuilt:N`
+//! (every frame a new random pose of every rod over its whole travel, so the first frame at
+//! each pose is what is measured), `calibrate`, `track --raw`, `score`.
+//!
+//! With known poses (`--known-poses`: the rods at their travel's ends in the reference folder)
+//! the targets of the accuracy issue are asserted for position over the whole travel and for
+//! gross errors; without them the scale is carried by the parallel rods' direction and the
+//! position bound is the one such a model gives. The angle is printed and held to what the
+//! project reaches today (its target, 0.002 rad std and 0.01 rad max, is not met yet; see the
+//! README's accuracy table).
+#![allow(missing_docs, clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn rodtrack(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_rodtrack"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success(),
+        "rodtrack {} failed:\n{text}",
+        args.join(" ")
+    );
+    text
+}
+
+fn fresh_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The whole run's line of `rodtrack score --json` (every camera and rod).
+struct Score {
+    n: u64,
+    coverage: f64,
+    pos_std_mm: f64,
+    pos_max_mm: f64,
+    ang_std_rad: f64,
+    ang_max_rad: f64,
+    gross: u64,
+    wrong_ok: u64,
+}
+
+fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
+    let dir = fresh_dir(&format!("as_built_{seed}_{known_poses}"));
+    let d = |p: &str| dir.join(p).display().to_string();
+    let setup = format!("asbuilt:{seed}");
+    let seed_s = seed.to_string();
+    let mut sim = vec![
+        "simulate",
+        "--scenario",
+        "poses",
+        "--frames",
+        frames,
+        "--setup",
+        &setup,
+        "--seed",
+        &seed_s,
+    ];
+    if known_poses {
+        sim.push("--known-poses");
+    }
+    let rec = d("rec");
+    sim.extend(["--out", &rec]);
+    rodtrack(&sim);
+    let calib = rodtrack(&[
+        "calibrate",
+        "--inputs",
+        &d("rec/cam0.json"),
+        "--inputs",
+        &d("rec/cam1.json"),
+        "--out",
+        &d("c.toml"),
+    ]);
+    let model = if known_poses {
+        "known_poses"
+    } else {
+        "vanishing_direction"
+    };
+    assert!(
+        calib.contains(&format!("along the travel: {model}")),
+        "setup {seed}: calibration did not use {model}:\n{calib}"
+    );
+    rodtrack(&[
+        "track",
+        "--calib",
+        &d("c.toml"),
+        "--input",
+        &d("rec/cam0"),
+        "--input",
+        &d("rec/cam1"),
+        "--raw",
+        "--out",
+        &d("out.csv"),
+    ]);
+    rodtrack(&[
+        "score",
+        "--truth",
+        &d("rec/truth.csv"),
+        "--measured",
+        &d("out.csv"),
+        "--json",
+        &d("score.json"),
+    ]);
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("score.json")).unwrap()).unwrap();
+    let all = v
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["rod"].is_null())
+        .unwrap();
+    let s = &all["stats"];
+    let f = |k: &str| s[k].as_f64().unwrap();
+    let score = Score {
+        n: s["n"].as_u64().unwrap(),
+        coverage: f("coverage"),
+        pos_std_mm: f("pos_std_mm"),
+        pos_max_mm: f("pos_max_mm"),
+        ang_std_rad: f("ang_std_rad"),
+        ang_max_rad: f("ang_max_rad"),
+        gross: s["gross"].as_u64().unwrap(),
+        wrong_ok: s["wrong_ok"].as_u64().unwrap(),
+    };
+    eprintln!(
+        "setup asbuilt:{seed} ({model}): {} rows, coverage {:.3}, position std {:.4} max {:.4} \
+         mm, angle std {:.4} max {:.4} rad, gross {}, wrong ok {}",
+        score.n,
+        score.coverage,
+        score.pos_std_mm,
+        score.pos_max_mm,
+        score.ang_std_rad,
+        score.ang_max_rad,
+        score.gross,
+        score.wrong_ok
+    );
+    score
+}
+
+/// Several random setups with known poses: position over the whole travel within the
+/// accuracy issue's targets (std 0.03 mm, max 0.15 mm), no gross error, full coverage.
+#[test]
+fn random_setups_with_known_poses_meet_the_position_targets() {
+    let mut worst = (0.0f64, 0.0f64, 0.0f64);
+    for seed in [11, 12, 13] {
+        let s = run_setup(seed, true, "25");
+        assert!(s.n > 200, "setup {seed}: only {} rows", s.n);
+        assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
+        assert_eq!(s.gross, 0, "setup {seed}: gross errors");
+        assert_eq!(s.wrong_ok, 0, "setup {seed}: wrong rows reported ok");
+        assert!(
+            s.pos_std_mm <= 0.03,
+            "setup {seed}: position std {}",
+            s.pos_std_mm
+        );
+        assert!(
+            s.pos_max_mm <= 0.15,
+            "setup {seed}: position max {}",
+            s.pos_max_mm
+        );
+        // Not the target (0.002 / 0.01 rad): where the project stands, so that it only gets
+        // better.
+        assert!(
+            s.ang_std_rad <= 0.008,
+            "setup {seed}: angle std {}",
+            s.ang_std_rad
+        );
+        worst = (
+            worst.0.max(s.pos_max_mm),
+            worst.1.max(s.ang_std_rad),
+            worst.2.max(s.ang_max_rad),
+        );
+    }
+    eprintln!(
+        "worst of the setups: position max {:.4} mm, angle std {:.4} rad, angle max {:.4} rad",
+        worst.0, worst.1, worst.2
+    );
+}
+
+/// Without known poses the parallel rods' common direction carries the scale along the
+/// travel: no gross error, position within 0.15 mm.
+#[test]
+fn random_setups_without_known_poses_use_the_rods_direction() {
+    for seed in [21, 22] {
+        let s = run_setup(seed, false, "25");
+        assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
+        assert_eq!(s.gross, 0, "setup {seed}: gross errors");
+        assert!(
+            s.pos_max_mm <= 0.15,
+            "setup {seed}: position max {}",
+            s.pos_max_mm
+        );
+    }
+}
