@@ -9,7 +9,7 @@ use super::inputs::{KnownPose, RodInputs};
 use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
-use super::travel::{fit_along, h_from_direction, AlongTravel, RodAxis};
+use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
@@ -288,15 +288,27 @@ pub fn calibrate_rod_with(
 
     // Along the travel: the known poses' barcodes, else the parallel rods' direction.
     let mut travel_model = "affine";
+    // The reference's edges span 64 mm of the barcode: with the depth changing along the rod
+    // their affine fit is the secant's scale, not the scale at the reference; `(l0, g)` are
+    // refitted with `h` held, and `h` found again from them.
+    let ref_pts: Vec<(f64, f64)> = edge_pts.iter().map(|&(u, l)| (s_ref + u, l)).collect();
     let h_from_rods = match (&curve, extras.direction) {
         (CurveModel::Camera { n0, d, .. }, Some(dir3)) => {
-            let n_ref = [n0[0] + l0 * d[0], n0[1] + l0 * d[1]];
-            h_from_direction(dir3, n_ref, *d, g)
+            let (mut l, mut gg, mut h) = (l0, g, None);
+            for _ in 0..3 {
+                let n_ref = [n0[0] + l * d[0], n0[1] + l * d[1]];
+                h = h_from_direction(dir3, n_ref, *d, gg);
+                match h.and_then(|h| fit_at_h(&ref_pts, s_ref, h)) {
+                    Some((l1, g1, _)) => (l, gg) = (l1, g1),
+                    None => break,
+                }
+            }
+            h.map(|h| (h, l, gg))
         }
         _ => None,
     };
     if !extras.known.is_empty() {
-        let mut pts: Vec<(f64, f64)> = edge_pts.iter().map(|&(u, l)| (s_ref + u, l)).collect();
+        let mut pts = ref_pts.clone();
         let mut poses: Vec<(&FrameView, f64)> = vec![(frame, s_ref)];
         for (kp, kframe) in extras.known {
             match edges_at_pose(
@@ -329,8 +341,13 @@ pub fn calibrate_rod_with(
             let (c, _) = refine_centre_line(curve, &along, &knot_range, &poses, &used, &marker);
             curve = c;
         }
-    } else if let Some(h) = h_from_rods {
-        along.h = h;
+    } else if let Some((h, l, gg)) = h_from_rods {
+        along = AlongTravel {
+            l0: l,
+            g: gg,
+            h,
+            s_ref_mm: s_ref,
+        };
         travel_model = "vanishing_direction";
     }
     // With a camera model the radius is the cylinder's projection; without one, what the
@@ -449,7 +466,7 @@ pub fn calibrate_rod_with(
         radius_ratio,
         travel_model: travel_model.to_string(),
         depth_change_per_m: along.h * 1000.0,
-        depth_change_per_m_from_rods: h_from_rods.map(|h| h * 1000.0),
+        depth_change_per_m_from_rods: h_from_rods.map(|h| h.0 * 1000.0),
         known_pose_errors_mm: Vec::new(),
         warnings,
     };

@@ -58,8 +58,9 @@ impl AlongTravel {
     }
 }
 
-/// Least squares `(l0, g)` of `lambda = l0 + g x` with `x = d / (1 + h d)`, and its RMS.
-fn fit_at_h(points: &[(f64, f64)], s_ref: f64, h: f64) -> Option<(f64, f64, f64)> {
+/// Least squares `(l0, g)` of `lambda = l0 + g x` with `x = d / (1 + h d)` over `(s_mm,
+/// lambda)` pairs, `d = s - s_ref`, and its RMS.
+pub fn fit_at_h(points: &[(f64, f64)], s_ref: f64, h: f64) -> Option<(f64, f64, f64)> {
     let n = points.len() as f64;
     if points.len() < 2 {
         return None;
