@@ -122,6 +122,7 @@ pub fn run(args: Args) -> Result<()> {
         let source = factory
             .open(input, &opts)
             .with_context(|| format!("camera {} ({}): input {input}", cam.index, cam.name))?;
+        print_source_warnings(&format!("camera {} ({})", cam.index, cam.name), &*source);
         let pipe = CameraPipeline::new(cam, mode)
             .with_context(|| format!("camera {} ({})", cam.index, cam.name))?;
         cameras.push(TrackCamera {
@@ -157,6 +158,21 @@ pub fn run(args: Args) -> Result<()> {
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// Prints what a source noticed while opening (files left out, ...): the first
+/// [`MAX_WARNINGS`], then how many more.
+pub fn print_source_warnings(label: &str, source: &dyn FrameSource) {
+    let w = source.warnings();
+    for msg in w.iter().take(MAX_WARNINGS as usize) {
+        eprintln!("{label}: warning: {msg}");
+    }
+    if w.len() > MAX_WARNINGS as usize {
+        eprintln!(
+            "{label}: {} more warning(s) not printed",
+            w.len() - MAX_WARNINGS as usize
+        );
+    }
 }
 
 /// A live frame's overlays between a camera's processing stage and its frame hook: made for
