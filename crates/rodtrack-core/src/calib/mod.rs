@@ -5,6 +5,7 @@ pub mod file;
 pub mod find;
 pub mod inputs;
 pub mod opencv;
+pub mod validate;
 
 pub use compute::{calibrate_rod, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{

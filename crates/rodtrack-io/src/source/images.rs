@@ -72,9 +72,9 @@ impl FileLayout {
     }
 }
 
-/// The most pixels an image file may claim when no frame size is expected (16 Mpx, e.g.
-/// 4096x4096; cameras here have 1.6 Mpx). With an expected size, exactly that size is read.
-pub const DEFAULT_MAX_PIXELS: usize = 16 << 20;
+/// The most pixels an image file may claim when no frame size is expected (8 Mpx: 3840x2160
+/// fits; cameras here have 1.6 Mpx). With an expected size, exactly that size is read.
+pub const DEFAULT_MAX_PIXELS: usize = 8 << 20;
 
 /// The most bytes per pixel any accepted file layout decodes to (RGBA 16-bit).
 const MAX_DECODED_BYTES_PER_PIXEL: usize = 8;
@@ -212,6 +212,9 @@ impl ImageDecoderScratch {
             .map_err(|e| decode_err(path, e))?;
         let (w, h) = decoder.dimensions();
         let (w, h) = (w as usize, h as usize);
+        if w == 0 || h == 0 {
+            return Err(decode_err(path, format!("empty image ({w}x{h})")));
+        }
         match self.expect {
             Some((ew, eh)) if (w, h) != (ew, eh) => {
                 return Err(IoError::WrongSize {
