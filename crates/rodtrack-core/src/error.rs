@@ -41,6 +41,24 @@ pub enum CoreError {
         /// What is wrong.
         reason: String,
     },
+    /// A file-level field of a calibration file is invalid.
+    #[error("calibration field `{field}` {reason}")]
+    FileField {
+        /// The field.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A camera-level field of calibration inputs or of a calibration file is invalid.
+    #[error("camera {camera}: calibration field `{field}` {reason}")]
+    CameraField {
+        /// The camera: its index, and its name when known (`0 (cam0)`).
+        camera: String,
+        /// The field.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// A rod's calibration is invalid.
     #[error("rod {rod}: calibration field `{field}` {reason}")]
     Calibration {

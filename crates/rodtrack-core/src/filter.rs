@@ -785,9 +785,16 @@ impl FilterBank {
         &mut self.filters[i].1
     }
 
-    /// Filters one row through its rod's filter.
+    /// Filters one row through its rod's filter. The row of a bad frame stays `bad_frame`
+    /// (quality 0) after the filter: the filter coasts through it, but the output must say
+    /// that the frame was unusable.
     pub fn update(&mut self, m: &Measurement) -> Measurement {
-        self.filter_mut(m.rod).update(m)
+        let mut out = self.filter_mut(m.rod).update(m);
+        if m.status == crate::Status::BadFrame {
+            out.status = crate::Status::BadFrame;
+            out.quality = 0.0;
+        }
+        out
     }
 
     /// Checks a row against its rod's filter (see [`RodFilter::check`]).

@@ -124,6 +124,21 @@ impl CameraPipeline {
     }
 }
 
+/// Marks `bad_frame` (quality 0) each fused row whose rod has rows in `raw` that are all
+/// `bad_frame`: every camera's frame was unusable.
+pub fn mark_fused_bad_frames(raw: &[Measurement], fused: &mut [Measurement]) {
+    for f in fused {
+        let mut rows = raw
+            .iter()
+            .filter(|m| m.rod == f.rod && matches!(m.camera, CameraId::Camera(_)))
+            .peekable();
+        if rows.peek().is_some() && rows.all(|m| m.status == crate::Status::BadFrame) {
+            f.status = crate::Status::BadFrame;
+            f.quality = 0.0;
+        }
+    }
+}
+
 /// The temporal filter and the fusion over one frame set (all cameras of one trigger): every
 /// camera's rows go through that camera's per-rod filters, and, with several cameras, the rows
 /// of one rod are fused (camera `Fused`) and filtered again. No added delay: the rows for
@@ -174,6 +189,7 @@ impl FrameSetFilter {
             for m in &mut out[start..] {
                 *m = m.sanitized();
             }
+            mark_fused_bad_frames(raw, &mut out[start..]);
         }
     }
 

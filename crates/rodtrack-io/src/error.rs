@@ -66,6 +66,36 @@ pub enum IoError {
         /// What the file holds.
         got: String,
     },
+    /// A frame size (from a file header or an input string) whose bytes overflow or exceed
+    /// the limit: refused before anything is allocated.
+    #[error("frame size {width}x{height} is too large (more than {max_bytes} bytes)")]
+    FrameTooLarge {
+        /// Width, px.
+        width: usize,
+        /// Height, px.
+        height: usize,
+        /// The limit, bytes.
+        max_bytes: usize,
+    },
+    /// A file is larger than any frame of the expected size can be: not read.
+    #[error("{path}: file too large for a frame: {len} bytes, at most {max} expected")]
+    FileTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its length, bytes.
+        len: u64,
+        /// The most a frame file of the expected size may take, bytes.
+        max: u64,
+    },
+    /// A path in an input folder is not a regular file (after following symlinks): a device,
+    /// a FIFO, a socket, a dangling link. Never opened.
+    #[error("{path}: not a regular file ({kind}), skipped")]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
+    },
     /// A raw frame is shorter (or longer) than width x height x bytes per pixel.
     #[error("{path}: raw frame {frame} is truncated: expected {expected} bytes, got {got}")]
     TruncatedRaw {

@@ -127,6 +127,51 @@ impl FrameBuffer {
         self.reshape(width, height, width * format.bytes_per_pixel(), format);
     }
 
+    /// Like [`FrameBuffer::reshape`], for sizes that came from outside (a file header, an
+    /// input string): refuses, before allocating anything, a size whose bytes overflow or
+    /// exceed `max_bytes` (see [`MAX_FRAME_BYTES`]). On error the buffer is unchanged.
+    pub fn try_reshape(
+        &mut self,
+        width: usize,
+        height: usize,
+        stride: usize,
+        format: PixelFormat,
+        max_bytes: usize,
+    ) -> Result<(), IoError> {
+        let bytes = frame_bytes(width, height, stride, format).filter(|b| *b <= max_bytes);
+        let Some(bytes) = bytes else {
+            return Err(IoError::FrameTooLarge {
+                width,
+                height,
+                max_bytes,
+            });
+        };
+        self.meta.width = width;
+        self.meta.height = height;
+        self.meta.stride = stride;
+        self.meta.format = format;
+        self.data.resize(bytes, 0);
+        Ok(())
+    }
+
+    /// [`FrameBuffer::try_reshape`] with a packed stride.
+    pub fn try_reshape_packed(
+        &mut self,
+        width: usize,
+        height: usize,
+        format: PixelFormat,
+        max_bytes: usize,
+    ) -> Result<(), IoError> {
+        let stride = width
+            .checked_mul(format.bytes_per_pixel())
+            .ok_or(IoError::FrameTooLarge {
+                width,
+                height,
+                max_bytes,
+            })?;
+        self.try_reshape(width, height, stride, format, max_bytes)
+    }
+
     /// A validated view for the core.
     pub fn view(&self) -> Result<FrameView<'_>, CoreError> {
         FrameView::new(
@@ -156,6 +201,25 @@ impl FrameBuffer {
         let len = self.meta.width * self.meta.format.bytes_per_pixel();
         self.data.get(start..start + len)
     }
+}
+
+/// The largest frame a [`FrameBuffer`] takes from outside data (file headers, input strings)
+/// by default: 256 MiB, far above any camera here (1440x1080 Bayer is 1.5 MB).
+pub const MAX_FRAME_BYTES: usize = 256 << 20;
+
+/// `stride * height` bytes, checked: `None` on overflow or when `stride` is shorter than a
+/// row of `width` pixels.
+pub fn frame_bytes(
+    width: usize,
+    height: usize,
+    stride: usize,
+    format: PixelFormat,
+) -> Option<usize> {
+    let row = width.checked_mul(format.bytes_per_pixel())?;
+    if stride < row {
+        return None;
+    }
+    stride.checked_mul(height)
 }
 
 /// A bounded pool of [`FrameBuffer`]s shared between threads (cheap to clone).
@@ -241,6 +305,28 @@ mod tests {
             pool.put(b);
         }
         assert_eq!(pool.created(), 1);
+    }
+
+    #[test]
+    fn try_reshape_refuses_huge_and_overflowing_sizes_without_allocating() {
+        let mut b = FrameBuffer::new();
+        let e = b
+            .try_reshape_packed(
+                2_000_000_000,
+                2_000_000_000,
+                PixelFormat::Mono8,
+                MAX_FRAME_BYTES,
+            )
+            .unwrap_err();
+        assert!(e.to_string().contains("2000000000x2000000000"), "{e}");
+        assert!(b
+            .try_reshape_packed(usize::MAX, 3, PixelFormat::Mono16, usize::MAX)
+            .is_err());
+        assert!(b.try_reshape(4, 4, 2, PixelFormat::Mono8, 1 << 20).is_err());
+        assert_eq!(b.data.capacity(), 0);
+        b.try_reshape_packed(64, 48, PixelFormat::Mono16, 64 * 48 * 2)
+            .unwrap();
+        assert_eq!(b.data.len(), 64 * 48 * 2);
     }
 
     #[test]

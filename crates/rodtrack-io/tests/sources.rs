@@ -165,13 +165,32 @@ fn frame_ids_from_names_or_index_and_numeric_order() {
     }
     assert_eq!(ids, [1, 2, 10]);
 
+    // One stray file without a number does not renumber the others: it is left out, with a
+    // warning naming it.
     write_gray8(&dir.join("extra.pgm"), 4, 4, 0);
     let seq = open(&dir, None);
     let ids: Vec<u64> = seq.files().iter().map(|(id, _)| *id).collect();
+    assert_eq!(ids, [1, 2, 10]);
+    let w = seq.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("extra.pgm") && w[0].contains("left out"),
+        "{w:?}"
+    );
+
+    // Two files sharing a number: every file by its index in name order, with a warning.
+    write_gray8(&dir.join("g2.pgm"), 4, 4, 0);
+    std::fs::remove_file(dir.join("extra.pgm")).unwrap();
+    let seq = open(&dir, None);
+    let ids: Vec<u64> = seq.files().iter().map(|(id, _)| *id).collect();
     assert_eq!(ids, [0, 1, 2, 3]);
-    // Name order: extra, f1, f10, f2.
-    assert!(seq.files()[0].1.ends_with("extra.pgm"));
-    assert!(seq.files()[2].1.ends_with("f10.pgm"));
+    // Name order: f1, f10, f2, g2.
+    assert!(seq.files()[1].1.ends_with("f10.pgm"));
+    assert!(
+        seq.warnings()[0].contains("share a frame number"),
+        "{:?}",
+        seq.warnings()
+    );
 }
 
 #[test]

@@ -25,6 +25,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_core::calib::find::{
     find_markers, find_markers_in, path_points_from_sweep, FoundMarker,
 };
+use rodtrack_core::calib::validate::{MAX_RODS_PER_CAMERA, MAX_ROD_ID, MAX_TRAVEL_MM};
 use rodtrack_core::calib::{
     calibrate_rod, calibrate_rods, CalibrationFile, CalibrationInputs, CameraCalibration,
     ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodCalibration, RodInputs,
@@ -162,6 +163,8 @@ pub fn calibrate_camera(
     index: u32,
 ) -> Result<CameraCalibration> {
     let name = path.display().to_string();
+    rodtrack_core::calib::validate::validate_inputs(inputs, index)
+        .with_context(|| format!("calibration inputs {name} are invalid"))?;
     let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
         anyhow!(
             "{name}: field `pixel_format`: unknown format {:?}",
@@ -175,6 +178,15 @@ pub fn calibrate_camera(
         .join(&inputs.reference_frames.dir);
     let files =
         list_image_files(&dir).with_context(|| format!("{name}: field `reference_frames.dir`"))?;
+    if inputs.reference_frames.reference_frame >= files.len() {
+        bail!(
+            "{name}: camera {index}: field `reference_frames.reference_frame`: frame {} does not \
+             exist ({} images in {})",
+            inputs.reference_frames.reference_frame,
+            files.len(),
+            dir.display()
+        );
+    }
     // Every frame a rod names: its reference frame and its known poses.
     let mut wanted: Vec<(u32, &str, usize)> = Vec::new();
     for rod in &inputs.rods {
@@ -326,8 +338,8 @@ fn parse_travel(s: &str) -> Result<[f64; 2], String> {
         t.trim()
             .parse::<f64>()
             .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("`{t}` is not a number of mm"))
+            .filter(|v| v.is_finite() && v.abs() <= MAX_TRAVEL_MM)
+            .ok_or_else(|| format!("`{t}` is not a number of mm within +-{MAX_TRAVEL_MM}"))
     };
     let (a, b) = (p(a)?, p(b)?);
     if a >= b {
@@ -344,18 +356,29 @@ fn parse_rod_list(s: &str) -> Result<Vec<u32>> {
         let num = |t: &str| {
             t.trim()
                 .parse::<u32>()
-                .map_err(|_| anyhow!("--rods {s}: `{t}` is not a rod id"))
+                .ok()
+                .filter(|id| *id <= MAX_ROD_ID)
+                .ok_or_else(|| anyhow!("--rods {s}: `{t}` is not a rod id (0 to {MAX_ROD_ID})"))
         };
         match part.split_once('-') {
             Some((a, b)) => {
                 let (a, b) = (num(a)?, num(b)?);
+                // Before any allocation sized by the range.
+                if a.abs_diff(b) as usize + ids.len() >= MAX_RODS_PER_CAMERA {
+                    bail!("--rods {s}: more than {MAX_RODS_PER_CAMERA} rods");
+                }
                 if a <= b {
                     ids.extend(a..=b);
                 } else {
                     ids.extend((b..=a).rev());
                 }
             }
-            None => ids.push(num(part)?),
+            None => {
+                if ids.len() >= MAX_RODS_PER_CAMERA {
+                    bail!("--rods {s}: more than {MAX_RODS_PER_CAMERA} rods");
+                }
+                ids.push(num(part)?)
+            }
         }
     }
     let mut sorted = ids.clone();

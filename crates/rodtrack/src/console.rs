@@ -60,6 +60,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut cameras = Vec::new();
     for (index, path) in args.inputs.iter().enumerate() {
         let inputs = read_inputs(path)?;
+        rodtrack_core::calib::validate::validate_inputs(&inputs, index as u32)
+            .with_context(|| format!("calibration inputs {} are invalid", path.display()))?;
         let reference = load_reference(&inputs, path)?;
         cameras.push(CameraSetup {
             index: index as u32,

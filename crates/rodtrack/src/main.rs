@@ -89,7 +89,24 @@ fn main() {
         Command::BenchLatency(a) => bench_latency::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", error_chain(&e));
         std::process::exit(2);
     }
+}
+
+/// The error and its causes joined by `: `, leaving out a cause whose text the message before
+/// already holds (library errors such as "cannot create: No such file" carry their OS error).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
 }

@@ -92,6 +92,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    check_out_is_not_an_input(&args.out, &[&args.calib])?;
     let cal = read_calibration(&args.calib)?;
     let mode = Mode::from_name(&args.mode).ok_or_else(|| anyhow!("unknown mode {}", args.mode))?;
     if args.inputs.len() != cal.cameras.len() {
@@ -122,6 +123,7 @@ pub fn run(args: Args) -> Result<()> {
         let source = factory
             .open(input, &opts)
             .with_context(|| format!("camera {} ({}): input {input}", cam.index, cam.name))?;
+        print_source_warnings(&format!("camera {} ({})", cam.index, cam.name), &*source);
         let pipe = CameraPipeline::new(cam, mode)
             .with_context(|| format!("camera {} ({})", cam.index, cam.name))?;
         cameras.push(TrackCamera {
@@ -132,11 +134,12 @@ pub fn run(args: Args) -> Result<()> {
         });
     }
     let sink = open_sinks(&args.out, args.format.as_deref(), args.udp.as_deref())?;
+    let stop = Arc::new(AtomicBool::new(false));
     let sink = ConsoleRows {
         inner: sink,
         console: console.clone(),
+        stop_on_broken_pipe: Some(stop.clone()),
     };
-    let stop = Arc::new(AtomicBool::new(false));
     install_ctrlc(stop.clone());
     let options = RunOptions {
         max_frames: args.max_frames,
@@ -147,6 +150,17 @@ pub fn run(args: Args) -> Result<()> {
     let (outcome, sink) = run_cameras(cameras, sink, &stop, &options)?;
     drop(sink);
     eprintln!("{}", outcome.summary());
+    let report = &outcome.report;
+    if report.cameras.iter().any(|c| c.frames_read > 0)
+        && report.cameras.iter().all(|c| c.bad_frames >= c.frames_read)
+    {
+        bail!(
+            "every frame read was bad ({} frame(s)): nothing was measured; the rows written \
+             (all `bad_frame`) are in {}",
+            report.cameras.iter().map(|c| c.frames_read).sum::<u64>(),
+            args.out.display()
+        );
+    }
     if outcome.report.sink_errors > 0 {
         bail!(
             "{} write(s) to the output failed (first: {}); rows written before are in {}",
@@ -155,8 +169,27 @@ pub fn run(args: Args) -> Result<()> {
             args.out.display()
         );
     }
-    println!("wrote {}", args.out.display());
+    if args.out.as_os_str() == "-" {
+        eprintln!("wrote standard output");
+    } else {
+        println!("wrote {}", args.out.display());
+    }
     Ok(())
+}
+
+/// Prints what a source noticed while opening (files left out, ...): the first
+/// [`MAX_WARNINGS`], then how many more.
+pub fn print_source_warnings(label: &str, source: &dyn FrameSource) {
+    let w = source.warnings();
+    for msg in w.iter().take(MAX_WARNINGS as usize) {
+        eprintln!("{label}: warning: {msg}");
+    }
+    if w.len() > MAX_WARNINGS as usize {
+        eprintln!(
+            "{label}: {} more warning(s) not printed",
+            w.len() - MAX_WARNINGS as usize
+        );
+    }
 }
 
 /// A live frame's overlays between a camera's processing stage and its frame hook: made for
@@ -167,10 +200,26 @@ struct LiveOverlays {
     overlays: Vec<rodtrack_console::RodOverlay>,
 }
 
-/// Passes rows on to `inner` and shows them in the web console's plots.
+/// Passes rows on to `inner` and shows them in the web console's plots; a write that fails on
+/// a broken pipe (`--out - | head`) sets `stop_on_broken_pipe`: nobody reads any more.
 struct ConsoleRows<S> {
     inner: S,
     console: Option<Arc<ConsoleHandle>>,
+    stop_on_broken_pipe: Option<Arc<AtomicBool>>,
+}
+
+/// True when `e` is a write to a pipe whose reader has gone.
+pub fn is_broken_pipe(e: &rodtrack_io::IoError) -> bool {
+    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = cur {
+        if let Some(io) = err.downcast_ref::<std::io::Error>() {
+            if io.kind() == std::io::ErrorKind::BrokenPipe {
+                return true;
+            }
+        }
+        cur = err.source();
+    }
+    false
 }
 
 impl<S: MeasurementSink> MeasurementSink for ConsoleRows<S> {
@@ -178,6 +227,11 @@ impl<S: MeasurementSink> MeasurementSink for ConsoleRows<S> {
         let r = self.inner.write(rows);
         if let Some(c) = &self.console {
             c.publish_rows(rows);
+        }
+        if let (Err(e), Some(stop)) = (&r, &self.stop_on_broken_pipe) {
+            if is_broken_pipe(e) && !stop.swap(true, Ordering::SeqCst) {
+                eprintln!("\nthe output's reader has gone (broken pipe): stopping");
+            }
         }
         r
     }
@@ -198,7 +252,9 @@ pub fn source_factory() -> SourceFactory {
     factory
 }
 
-/// Opens the file sink (and the UDP sink).
+/// Opens the file sink (`-`: standard output) and the UDP sink. The UDP address is checked
+/// (and its socket opened) first: the output file is created, truncating an existing one,
+/// only when every other sink is open.
 pub fn open_sinks(
     out: &std::path::Path,
     format: Option<&str>,
@@ -208,16 +264,45 @@ pub fn open_sinks(
         Some(f) => f == "jsonl",
         None => out.extension().is_some_and(|e| e == "jsonl" || e == "json"),
     };
+    let udp = udp.map(UdpSink::new).transpose()?;
     let mut sink = MultiSink::new();
-    if jsonl {
+    if out.as_os_str() == "-" {
+        let stdout = std::io::stdout();
+        if jsonl {
+            sink.push(Box::new(JsonlSink::new(stdout, "standard output")));
+        } else {
+            sink.push(Box::new(CsvSink::new(stdout, "standard output")?));
+        }
+    } else if jsonl {
         sink.push(Box::new(JsonlSink::create(out)?));
     } else {
         sink.push(Box::new(CsvSink::create(out)?));
     }
-    if let Some(addr) = udp {
-        sink.push(Box::new(UdpSink::new(addr)?));
+    if let Some(u) = udp {
+        sink.push(Box::new(u));
     }
     Ok(sink)
+}
+
+/// Refuses an output path that is one of the run's own input files (the calibration, ...):
+/// it would be truncated before being read.
+pub fn check_out_is_not_an_input(out: &std::path::Path, inputs: &[&std::path::Path]) -> Result<()> {
+    if out.as_os_str() == "-" {
+        return Ok(());
+    }
+    let Ok(o) = out.canonicalize() else {
+        return Ok(()); // Does not exist yet: not an input.
+    };
+    for i in inputs {
+        if i.canonicalize().is_ok_and(|c| c == o) {
+            bail!(
+                "--out {} is the input file {}: refusing to overwrite it",
+                out.display(),
+                i.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Sets `stop` on Ctrl-C; a second Ctrl-C while stopping ends the process the usual way.
@@ -297,6 +382,7 @@ impl SetFusion {
         for m in &mut out[start..] {
             *m = m.sanitized();
         }
+        rodtrack_core::pipeline::mark_fused_bad_frames(raw, &mut out[start..]);
         for d in self.fuser.disagreements() {
             self.warnings.warn(format_args!(
                 "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",

@@ -159,8 +159,8 @@ pub struct CalibrationFile {
 impl CameraCalibration {
     /// The pixel format, validated.
     pub fn format(&self) -> Result<PixelFormat, CoreError> {
-        PixelFormat::from_name(&self.pixel_format).ok_or_else(|| CoreError::Calibration {
-            rod: u32::MAX,
+        PixelFormat::from_name(&self.pixel_format).ok_or_else(|| CoreError::CameraField {
+            camera: self.index.to_string(),
             field: format!("cameras[{}].pixel_format", self.index),
             reason: format!("unknown pixel format {:?}", self.pixel_format),
         })
@@ -171,28 +171,15 @@ impl CalibrationFile {
     /// Checks every field; the error names the camera, rod and field.
     pub fn validate(&self) -> Result<(), CoreError> {
         if self.version != CALIBRATION_VERSION {
-            return Err(CoreError::Calibration {
-                rod: u32::MAX,
+            return Err(CoreError::FileField {
                 field: "version".into(),
                 reason: format!("must be {CALIBRATION_VERSION}, got {}", self.version),
             });
         }
+        super::validate::validate_file(self)?;
         for cam in &self.cameras {
             cam.format()?;
-            if cam.image_width < 16 || cam.image_height < 16 {
-                return Err(CoreError::Calibration {
-                    rod: u32::MAX,
-                    field: format!("cameras[{}].image_width/height", cam.index),
-                    reason: "must be at least 16 px".into(),
-                });
-            }
-            if !(cam.fps.is_finite() && cam.fps > 0.0) {
-                return Err(CoreError::Calibration {
-                    rod: u32::MAX,
-                    field: format!("cameras[{}].fps", cam.index),
-                    reason: format!("must be positive, got {}", cam.fps),
-                });
-            }
+            super::validate::validate_camera(cam)?;
             for rod in &cam.rods {
                 rod.validate(cam.image_width, cam.image_height)?;
             }

@@ -8,6 +8,7 @@ pub mod opencv;
 pub mod rods;
 mod silhouette;
 pub mod travel;
+pub mod validate;
 
 pub use compute::{calibrate_rod, calibrate_rod_with, RodExtras, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{

@@ -66,10 +66,12 @@
 //! # }
 //! ```
 
+mod budget;
 mod latency;
 #[cfg(test)]
 mod tests;
 
+pub use budget::{track_memory_budget, BASE_BYTES};
 pub use latency::{LatencyHistogram, LatencyStages, LatencySummary};
 
 use crate::frame::{BufferPool, FrameBuffer, FrameMeta, Timestamp};

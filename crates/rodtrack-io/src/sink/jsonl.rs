@@ -1,8 +1,9 @@
 //! JSON Lines measurement files: one object per row with the CSV column names, e.g.
-//! `{"frame":12,"timestamp_s":0.060000000,"camera":"0","rod":3,"position_mm":-12.5000,
+//! `{"frame":12,"timestamp_s":0.060000000,"camera":0,"rod":3,"position_mm":-12.5000,
 //! "angle_rad":1.570796,"angle_unwrapped_rad":7.853982,"velocity_mm_s":0.000,
 //! "angular_velocity_rad_s":0.0000,"quality":0.9500,"status":"ok"}`.
-//! `camera` is always a string (`"0"`, `"1"`, `"fused"`), as in the CSV file.
+//! `camera` is a number (`0`, `1`, like `rod`) for a camera's rows and the string `"fused"`
+//! for fused rows (the reader accepts a camera index as a string too).
 
 use super::csv::TextOut;
 use super::{fields, parse_camera, MeasurementSink};
@@ -62,7 +63,8 @@ impl<W: Write + Send> MeasurementSink for JsonlSink<W> {
                 self.line.push('"');
                 self.line.push_str(name);
                 self.line.push_str("\":");
-                let quoted = matches!(*name, "camera" | "status");
+                // `camera`: a number for a camera's rows, the string "fused" for fused rows.
+                let quoted = *name == "status" || (*name == "camera" && value == "fused");
                 if quoted {
                     self.line.push('"');
                 }

@@ -1,6 +1,7 @@
 //! Image sequences: a folder (or pattern) of PNG, PGM/PPM or TIFF files.
 
-use super::naming::{frame_ids_from_names, list_image_files, read_timestamps_csv, TIMESTAMPS_FILE};
+use super::naming::{list_image_files_noting, number_frames, TIMESTAMPS_FILE};
+use super::timestamps::read_timestamps_csv_noting;
 use super::{FrameSource, SourceInfo, DEFAULT_FPS};
 use crate::frame::{FrameBuffer, Timestamp};
 use crate::{IoError, SourceError};
@@ -71,11 +72,33 @@ impl FileLayout {
     }
 }
 
-/// Reusable memory for decoding image files (file bytes and a conversion buffer).
+/// The most pixels an image file may claim when no frame size is expected (8 Mpx: 3840x2160
+/// fits; cameras here have 1.6 Mpx). With an expected size, exactly that size is read.
+pub const DEFAULT_MAX_PIXELS: usize = 8 << 20;
+
+/// The most bytes per pixel any accepted file layout decodes to (RGBA 16-bit).
+const MAX_DECODED_BYTES_PER_PIXEL: usize = 8;
+
+/// Slack over the decoded size for a file's headers, metadata and compression overhead.
+const FILE_MARGIN_BYTES: u64 = 1 << 20;
+
+/// The longest image file read for a frame of `pixels` pixels: its largest uncompressed
+/// layout (RGBA 16-bit) plus [`FILE_MARGIN_BYTES`]. Longer files are refused unread.
+pub fn max_image_file_bytes(pixels: usize) -> u64 {
+    (pixels as u64)
+        .saturating_mul(MAX_DECODED_BYTES_PER_PIXEL as u64)
+        .saturating_add(FILE_MARGIN_BYTES)
+}
+
+/// Reusable memory for decoding image files (file bytes and a conversion buffer), and the
+/// frame size expected, which bounds every allocation: a file longer than
+/// [`max_image_file_bytes`] is not read, and a header claiming another size is refused before
+/// any pixel is decoded.
 #[derive(Debug, Default)]
 pub struct ImageDecoderScratch {
     file: Vec<u8>,
     pixels: Vec<u8>,
+    expect: Option<(usize, usize)>,
 }
 
 fn decode_err(path: &Path, e: impl std::fmt::Display) -> IoError {
@@ -86,11 +109,56 @@ fn decode_err(path: &Path, e: impl std::fmt::Display) -> IoError {
 }
 
 impl ImageDecoderScratch {
+    /// Scratch memory for frames of `size` (`None`: any size up to [`DEFAULT_MAX_PIXELS`]).
+    pub fn expecting(size: Option<(usize, usize)>) -> Self {
+        ImageDecoderScratch {
+            expect: size,
+            ..Default::default()
+        }
+    }
+
+    /// The most pixels a file may hold.
+    fn max_pixels(&self) -> usize {
+        match self.expect {
+            Some((w, h)) => w.saturating_mul(h),
+            None => DEFAULT_MAX_PIXELS,
+        }
+    }
+
     fn load(&mut self, path: &Path) -> Result<(), IoError> {
         self.file.clear();
-        let mut f = std::fs::File::open(path).map_err(|e| IoError::file(path, "cannot open", e))?;
-        f.read_to_end(&mut self.file)
+        if let Some(kind) = super::naming::not_a_regular_file(path) {
+            return Err(IoError::NotAFile {
+                path: path.to_path_buf(),
+                kind,
+            });
+        }
+        let max = max_image_file_bytes(self.max_pixels());
+        let f = std::fs::File::open(path).map_err(|e| IoError::file(path, "cannot open", e))?;
+        let len = f
+            .metadata()
+            .map_err(|e| IoError::file(path, "cannot read", e))?
+            .len();
+        if len > max {
+            return Err(IoError::FileTooLarge {
+                path: path.to_path_buf(),
+                len,
+                max,
+            });
+        }
+        // The file may grow meanwhile: never read more than the cap.
+        f.take(max + 1)
+            .read_to_end(&mut self.file)
             .map_err(|e| IoError::file(path, "cannot read", e))?;
+        if self.file.len() as u64 > max {
+            let len = self.file.len() as u64;
+            self.file.clear();
+            return Err(IoError::FileTooLarge {
+                path: path.to_path_buf(),
+                len,
+                max,
+            });
+        }
         Ok(())
     }
 
@@ -101,7 +169,7 @@ impl ImageDecoderScratch {
         want: Option<PixelFormat>,
     ) -> Result<(usize, usize, PixelFormat), IoError> {
         self.load(path)?;
-        let decoder = make_reader(path, &self.file)?
+        let decoder = make_reader(path, &self.file, self.max_pixels())?
             .into_decoder()
             .map_err(|e| decode_err(path, e))?;
         let (w, h) = decoder.dimensions();
@@ -122,31 +190,60 @@ impl ImageDecoderScratch {
     ) -> Result<(), IoError> {
         self.load(path)?;
         let file = std::mem::take(&mut self.file);
-        let result = self.decode_loaded(path, &file, want, buf);
+        let result = self.decode_bytes(path, &file, want, buf);
         self.file = file;
         result
     }
 
-    fn decode_loaded(
+    /// Like [`ImageDecoderScratch::decode`] for a file already in memory (`path` names it in
+    /// errors and gives its format when the bytes do not). The header is read first: a size
+    /// other than the expected one (or over [`DEFAULT_MAX_PIXELS`]) is refused before any
+    /// allocation sized by it.
+    pub fn decode_bytes(
         &mut self,
         path: &Path,
         file: &[u8],
         want: Option<PixelFormat>,
         buf: &mut FrameBuffer,
     ) -> Result<(), IoError> {
-        let decoder = make_reader(path, file)?
+        let max_pixels = self.max_pixels();
+        let decoder = make_reader(path, file, max_pixels)?
             .into_decoder()
             .map_err(|e| decode_err(path, e))?;
         let (w, h) = decoder.dimensions();
         let (w, h) = (w as usize, h as usize);
+        if w == 0 || h == 0 {
+            return Err(decode_err(path, format!("empty image ({w}x{h})")));
+        }
+        match self.expect {
+            Some((ew, eh)) if (w, h) != (ew, eh) => {
+                return Err(IoError::WrongSize {
+                    path: path.to_path_buf(),
+                    expected_width: ew,
+                    expected_height: eh,
+                    width: w,
+                    height: h,
+                })
+            }
+            None if w.saturating_mul(h) > max_pixels => {
+                return Err(decode_err(
+                    path,
+                    format!("image size {w}x{h} is over the limit of {max_pixels} pixels"),
+                ))
+            }
+            _ => {}
+        }
         let layout = layout_of(path, decoder.color_type())?;
         let format = target_format(path, layout, want)?;
         let direct = layout.channels == if format == PixelFormat::Rgb8 { 3 } else { 1 }
             && layout.bits16 == format.is_16bit();
+        let max_bytes = max_pixels.saturating_mul(MAX_DECODED_BYTES_PER_PIXEL);
         let total = usize::try_from(decoder.total_bytes())
-            .map_err(|_| decode_err(path, "image too large"))?;
+            .ok()
+            .filter(|t| *t <= max_bytes)
+            .ok_or_else(|| decode_err(path, "image too large"))?;
         if direct {
-            buf.reshape_packed(w, h, format);
+            buf.try_reshape_packed(w, h, format, max_bytes)?;
             if buf.data.len() != total {
                 return Err(decode_err(path, "decoder size mismatch"));
             }
@@ -162,16 +259,30 @@ impl ImageDecoderScratch {
         decoder
             .read_image(&mut self.pixels)
             .map_err(|e| decode_err(path, e))?;
-        buf.reshape_packed(w, h, format);
+        buf.try_reshape_packed(w, h, format, max_bytes)?;
         convert(&self.pixels, layout, &mut buf.data, format);
         Ok(())
     }
 }
 
-fn make_reader<'a>(path: &Path, bytes: &'a [u8]) -> Result<ImageReader<Cursor<&'a [u8]>>, IoError> {
+/// A reader whose decoder may allocate at most what a frame of `max_pixels` needs (plus the
+/// file's length, for decoders that buffer compressed data).
+fn make_reader<'a>(
+    path: &Path,
+    bytes: &'a [u8],
+    max_pixels: usize,
+) -> Result<ImageReader<Cursor<&'a [u8]>>, IoError> {
     let mut reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| decode_err(path, e))?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(
+        (max_pixels as u64)
+            .saturating_mul(MAX_DECODED_BYTES_PER_PIXEL as u64)
+            .saturating_add(bytes.len() as u64)
+            .saturating_add(FILE_MARGIN_BYTES),
+    );
+    reader.limits(limits);
     if reader.format().is_none() {
         match ImageFormat::from_path(path) {
             Ok(f) => reader.set_format(f),
@@ -260,8 +371,9 @@ pub fn decode_image_file(
 
 /// A folder (or pattern) of image files read in frame order.
 ///
-/// Frame ids: the number in each file name when every name has a distinct one (files are then
-/// read in id order), else the index in name order. Timestamps: from `timestamps.csv` in the
+/// Frame ids: the number in each file name (files are then read in id order; files without a
+/// number beside numbered ones are left out with a warning), else the index in name order
+/// (see [`number_frames`]). Paths that are not regular files are left out with a warning. Timestamps: from `timestamps.csv` in the
 /// folder (columns `frame,timestamp_s`) when present, else `frame id / fps`. Every frame must
 /// have the first readable frame's size (or the size given) and format.
 #[derive(Debug)]
@@ -275,34 +387,40 @@ pub struct ImageSequence {
     fps: f64,
     timestamps: Option<HashMap<u64, f64>>,
     scratch: ImageDecoderScratch,
+    warnings: Vec<String>,
 }
 
 impl ImageSequence {
     /// Opens a folder or a pattern (`dir/cam0_*.png`). Fails on a missing folder, a folder
     /// without images, a bad sidecar, or when no file's header can be read.
     pub fn open(input: &Path, options: &ImageSequenceOptions) -> Result<Self, IoError> {
-        let files = list_image_files(input)?;
+        let mut warnings = Vec::new();
+        let files = list_image_files_noting(input, &mut warnings)?;
         let folder = if input.is_dir() {
             input.to_path_buf()
         } else {
             input.parent().map(Path::to_path_buf).unwrap_or_default()
         };
         let sidecar = folder.join(TIMESTAMPS_FILE);
-        let timestamps = if !options.ignore_sidecar && sidecar.is_file() {
-            Some(read_timestamps_csv(&sidecar)?)
+        let timestamps = if !options.ignore_sidecar && sidecar.symlink_metadata().is_ok() {
+            Some(read_timestamps_csv_noting(&sidecar, &mut warnings)?)
         } else {
             None
         };
-        Self::from_files(
+        let mut seq = Self::from_files(
             input.display().to_string(),
             files,
             options,
             timestamps.map(|t| (sidecar, t)),
-        )
+        )?;
+        warnings.append(&mut seq.warnings);
+        seq.warnings = warnings;
+        Ok(seq)
     }
 
     /// A sequence from an explicit list of files (read in the order given, ids by the naming
-    /// rule), with optional capture times `(sidecar path, frame id -> seconds)`.
+    /// rule, see [`number_frames`]), with optional capture times `(sidecar path, frame id ->
+    /// seconds)`.
     pub fn from_files(
         name: String,
         files: Vec<PathBuf>,
@@ -312,11 +430,7 @@ impl ImageSequence {
         if files.is_empty() {
             return Err(IoError::NoImages { path: name.into() });
         }
-        let (ids, from_names) = frame_ids_from_names(&files);
-        let mut files: Vec<(u64, PathBuf)> = ids.into_iter().zip(files).collect();
-        if from_names {
-            files.sort_by_key(|(id, _)| *id);
-        }
+        let (files, warnings) = number_frames(files);
         let fps = options
             .fps
             .filter(|f| *f > 0.0 && f.is_finite())
@@ -335,7 +449,7 @@ impl ImageSequence {
             }
             None => None,
         };
-        let mut scratch = ImageDecoderScratch::default();
+        let mut scratch = ImageDecoderScratch::expecting(options.size);
         let mut first_err = None;
         let mut probed = None;
         for (_, path) in &files {
@@ -357,6 +471,7 @@ impl ImageSequence {
             (None, None) => return Err(IoError::NoImages { path: name.into() }),
         };
         let (width, height) = options.size.unwrap_or((w, h));
+        scratch.expect = Some((width, height));
         Ok(ImageSequence {
             name,
             files,
@@ -367,6 +482,7 @@ impl ImageSequence {
             fps,
             timestamps,
             scratch,
+            warnings,
         })
     }
 
@@ -387,6 +503,10 @@ impl FrameSource for ImageSequence {
             frame_count: Some(self.files.len() as u64),
             live: false,
         }
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {

@@ -8,14 +8,22 @@
 mod images;
 mod naming;
 mod raw;
+mod timestamps;
 mod uri;
 
-pub use images::{decode_image_file, ImageDecoderScratch, ImageSequence, ImageSequenceOptions};
+pub use images::{
+    decode_image_file, max_image_file_bytes, ImageDecoderScratch, ImageSequence,
+    ImageSequenceOptions, DEFAULT_MAX_PIXELS,
+};
 pub use naming::{
-    frame_ids_from_names, list_image_files, parse_frame_number, read_timestamps_csv,
-    IMAGE_EXTENSIONS, TIMESTAMPS_FILE,
+    frame_ids_from_names, list_files_noting, list_image_files, list_image_files_noting,
+    not_a_regular_file, number_frames, parse_frame_number, IMAGE_EXTENSIONS, TIMESTAMPS_FILE,
 };
 pub use raw::{RawOptions, RawSource};
+pub use timestamps::{
+    parse_timestamps_csv, read_capped, read_timestamps_csv, read_timestamps_csv_noting,
+    MAX_SIDECAR_BYTES, MAX_TIMESTAMP_S,
+};
 pub use uri::{InputKind, InputSpec, OpenOptions, SourceBuilder, SourceFactory};
 
 use crate::{FrameBuffer, SourceError};
@@ -64,6 +72,13 @@ pub trait FrameSource: Send {
 
     /// Reads the next frame into `buf`; see the trait's documentation.
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError>;
+
+    /// What the source noticed while opening and wants the user to know, without failing:
+    /// files left out of a folder (not regular files, names without a frame number), a
+    /// suspicious sidecar. Empty by default.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 impl std::fmt::Debug for dyn FrameSource {
@@ -78,5 +93,8 @@ impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
     }
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
         (**self).next_frame(buf)
+    }
+    fn warnings(&self) -> Vec<String> {
+        (**self).warnings()
     }
 }

@@ -1,7 +1,6 @@
 //! File listing, frame ids from file names, glob-like patterns and the timestamps sidecar.
 
 use crate::IoError;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// File extensions read as images (lower case, matched case-insensitively).
@@ -41,6 +40,68 @@ pub fn frame_ids_from_names(files: &[PathBuf]) -> (Vec<u64>, bool) {
     ((0..files.len() as u64).collect(), false)
 }
 
+/// Frame ids for files in name order, with what a reader should be told: the number in each
+/// file name when every name has a distinct one; when only some names have a number, the
+/// numbered files only (each other file is left out, with a warning: one stray `snapshot.png`
+/// must not renumber every frame); when no name has a number, or two share one, the index in
+/// name order (with a warning for the shared numbers). Returns `(id, file)` in reading order
+/// (by id) and the warnings.
+pub fn number_frames(files: Vec<PathBuf>) -> (Vec<(u64, PathBuf)>, Vec<String>) {
+    let mut warnings = Vec::new();
+    let numbered: Vec<Option<u64>> = files.iter().map(|p| parse_frame_number(p)).collect();
+    let count = numbered.iter().filter(|n| n.is_some()).count();
+    let mut ids: Vec<u64> = numbered.iter().flatten().copied().collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let distinct = ids.len() == count;
+    if count > 0 && distinct {
+        let mut out = Vec::with_capacity(count);
+        for (n, path) in numbered.into_iter().zip(files) {
+            match n {
+                Some(id) => out.push((id, path)),
+                None => warnings.push(format!(
+                    "{}: no frame number in the name (the other files have one): left out",
+                    path.display()
+                )),
+            }
+        }
+        out.sort_by_key(|(id, _)| *id);
+        return (out, warnings);
+    }
+    if count > 0 {
+        warnings.push(format!(
+            "{} files share a frame number: frames numbered by their order in the folder",
+            count - ids.len() + 1
+        ));
+    }
+    ((0u64..).zip(files).collect(), warnings)
+}
+
+/// What a path is when it exists but is not a regular file (following symlinks): a device, a
+/// FIFO, a socket, a folder. `None` for a regular file, and for a path that cannot be
+/// examined (missing, dangling link: opening it reports why). Never opens the path (a FIFO
+/// would block).
+pub fn not_a_regular_file(path: &Path) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let meta = std::fs::metadata(path).ok()?;
+    let t = meta.file_type();
+    if t.is_file() {
+        None
+    } else if t.is_dir() {
+        Some("folder")
+    } else if t.is_char_device() {
+        Some("character device")
+    } else if t.is_block_device() {
+        Some("block device")
+    } else if t.is_fifo() {
+        Some("FIFO")
+    } else if t.is_socket() {
+        Some("socket")
+    } else {
+        Some("special file")
+    }
+}
+
 fn has_extension(path: &Path, exts: &[&str]) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
@@ -77,8 +138,14 @@ fn wildcard_match(pattern: &str, name: &str) -> bool {
 
 /// Lists the files with one of `exts` in a folder, or matching a pattern whose last component
 /// holds `*` or `?` (`rec/cam0_*.png`), sorted by name. Errors: missing folder, unreadable
-/// folder. An empty result is not an error here.
-pub fn list_files(input: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, IoError> {
+/// folder. An empty result is not an error here. Paths that are not regular files (after
+/// following symlinks: devices such as `/dev/zero`, FIFOs, sockets) are left
+/// out, each with a warning pushed to `skipped`; folders named like images are left out.
+pub fn list_files_noting(
+    input: &Path,
+    exts: &[&str],
+    skipped: &mut Vec<String>,
+) -> Result<Vec<PathBuf>, IoError> {
     let name = input.file_name().and_then(|n| n.to_str()).unwrap_or("");
     let (dir, pattern) = if name.contains('*') || name.contains('?') {
         let parent = input.parent().filter(|p| !p.as_os_str().is_empty());
@@ -98,7 +165,7 @@ pub fn list_files(input: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, IoError> 
     for entry in entries {
         let entry = entry.map_err(|e| IoError::file(&dir, "cannot list folder", e))?;
         let path = entry.path();
-        if !has_extension(&path, exts) || path.is_dir() {
+        if !has_extension(&path, exts) {
             continue;
         }
         if let Some(pat) = &pattern {
@@ -106,6 +173,12 @@ pub fn list_files(input: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, IoError> 
             if !wildcard_match(pat, &fname.to_string_lossy()) {
                 continue;
             }
+        }
+        if let Some(kind) = not_a_regular_file(&path) {
+            if kind != "folder" {
+                skipped.push(IoError::NotAFile { path, kind }.to_string());
+            }
+            continue;
         }
         files.push(path);
     }
@@ -116,76 +189,22 @@ pub fn list_files(input: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, IoError> 
 /// Lists the image files of a folder or pattern in name order (see [`IMAGE_EXTENSIONS`]).
 /// This is the order in which calibration's "frame N is the N-th image" counts.
 pub fn list_image_files(input: &Path) -> Result<Vec<PathBuf>, IoError> {
-    let files = list_files(input, &IMAGE_EXTENSIONS)?;
+    list_image_files_noting(input, &mut Vec::new())
+}
+
+/// Like [`list_image_files`], with a warning in `skipped` for each path left out (see
+/// [`list_files_noting`]).
+pub fn list_image_files_noting(
+    input: &Path,
+    skipped: &mut Vec<String>,
+) -> Result<Vec<PathBuf>, IoError> {
+    let files = list_files_noting(input, &IMAGE_EXTENSIONS, skipped)?;
     if files.is_empty() {
         return Err(IoError::NoImages {
             path: input.to_path_buf(),
         });
     }
     Ok(files)
-}
-
-/// Reads a timestamps sidecar: CSV with columns `frame,timestamp_s` (a header line is
-/// optional; other columns after these two are ignored). Returns frame id -> seconds.
-pub fn read_timestamps_csv(path: &Path) -> Result<HashMap<u64, f64>, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::file(path, "cannot read", e))?;
-    let mut map = HashMap::new();
-    let mut frame_col = 0usize;
-    let mut time_col = 1usize;
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if i == 0 && fields.iter().any(|f| f.parse::<f64>().is_err()) {
-            // Header: find the columns by name.
-            let find = |name: &str| fields.iter().position(|f| *f == name);
-            match (find("frame"), find("timestamp_s")) {
-                (Some(f), Some(t)) => {
-                    frame_col = f;
-                    time_col = t;
-                }
-                _ => {
-                    return Err(IoError::Parse {
-                        path: path.to_path_buf(),
-                        line: 1,
-                        column: "header".into(),
-                        reason: format!("expected columns `frame,timestamp_s`, got `{line}`"),
-                    })
-                }
-            }
-            continue;
-        }
-        let get = |col: usize, name: &str| -> Result<&str, IoError> {
-            fields.get(col).copied().ok_or_else(|| IoError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                column: name.into(),
-                reason: "missing value".into(),
-            })
-        };
-        let frame_s = get(frame_col, "frame")?;
-        let frame: u64 = frame_s.parse().map_err(|_| IoError::Parse {
-            path: path.to_path_buf(),
-            line: i + 1,
-            column: "frame".into(),
-            reason: format!("`{frame_s}` is not a frame number"),
-        })?;
-        let t_s = get(time_col, "timestamp_s")?;
-        let t: f64 = t_s
-            .parse()
-            .ok()
-            .filter(|t: &f64| t.is_finite() && *t >= 0.0)
-            .ok_or_else(|| IoError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                column: "timestamp_s".into(),
-                reason: format!("`{t_s}` is not a time in seconds (finite, >= 0)"),
-            })?;
-        map.insert(frame, t);
-    }
-    Ok(map)
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
 //! Raw frames: one file of concatenated frames, or a folder of `.raw` files (one frame each).
 
-use super::naming::{frame_ids_from_names, list_files, read_timestamps_csv, TIMESTAMPS_FILE};
+use super::naming::{list_files_noting, number_frames, TIMESTAMPS_FILE};
+use super::timestamps::read_timestamps_csv_noting;
 use super::{FrameSource, SourceInfo, DEFAULT_FPS};
-use crate::frame::{FrameBuffer, Timestamp};
+use crate::frame::{frame_bytes, FrameBuffer, Timestamp, MAX_FRAME_BYTES};
 use crate::{IoError, SourceError};
 use rodtrack_core::PixelFormat;
 use std::collections::HashMap;
@@ -43,11 +44,11 @@ impl RawOptions {
 
     fn stride(&self) -> usize {
         self.stride
-            .unwrap_or(self.width * self.format.bytes_per_pixel())
+            .unwrap_or(self.width.saturating_mul(self.format.bytes_per_pixel()))
     }
 
     fn frame_bytes(&self) -> usize {
-        self.stride() * self.height
+        self.stride().saturating_mul(self.height)
     }
 }
 
@@ -75,6 +76,7 @@ pub struct RawSource {
     layout: Layout,
     pos: u64,
     done: bool,
+    warnings: Vec<String>,
 }
 
 impl RawSource {
@@ -91,31 +93,53 @@ impl RawSource {
                 options.width, options.height
             )));
         }
-        let row = options.width * options.format.bytes_per_pixel();
+        let row = options
+            .width
+            .saturating_mul(options.format.bytes_per_pixel());
+        if frame_bytes(
+            options.width,
+            options.height,
+            options.stride(),
+            options.format,
+        )
+        .is_none_or(|b| b > MAX_FRAME_BYTES)
+            && options.stride() >= row
+        {
+            return Err(bad(format!(
+                "raw frame size {}x{} (stride {}) is too large (more than {MAX_FRAME_BYTES} bytes)",
+                options.width,
+                options.height,
+                options.stride()
+            )));
+        }
         if options.stride() < row {
             return Err(bad(format!(
                 "stride {} is shorter than one row ({row} bytes)",
                 options.stride()
             )));
         }
+        let mut warnings = Vec::new();
         let layout = if path.is_dir() {
-            let list = list_files(path, &["raw"])?;
+            let list = list_files_noting(path, &["raw"], &mut warnings)?;
             if list.is_empty() {
                 return Err(bad("folder holds no .raw files".into()));
             }
-            let (ids, from_names) = frame_ids_from_names(&list);
-            let mut files: Vec<(u64, PathBuf)> = ids.into_iter().zip(list).collect();
-            if from_names {
-                files.sort_by_key(|(id, _)| *id);
-            }
+            let (files, mut naming) = number_frames(list);
+            warnings.append(&mut naming);
             let sidecar = path.join(TIMESTAMPS_FILE);
-            let timestamps = if sidecar.is_file() {
-                Some(read_timestamps_csv(&sidecar)?)
+            let timestamps = if sidecar.symlink_metadata().is_ok() {
+                Some(read_timestamps_csv_noting(&sidecar, &mut warnings)?)
             } else {
                 None
             };
             Layout::Folder { files, timestamps }
         } else {
+            if let Some(kind) = super::naming::not_a_regular_file(path) {
+                return Err(IoError::NotAFile {
+                    path: path.to_path_buf(),
+                    kind,
+                });
+            }
             let mut file = File::open(path).map_err(|e| IoError::file(path, "cannot open", e))?;
             let len = file
                 .metadata()
@@ -138,6 +162,7 @@ impl RawSource {
             layout,
             pos: 0,
             done: false,
+            warnings,
         })
     }
 
@@ -164,6 +189,10 @@ impl FrameSource for RawSource {
             frame_count: Some(frame_count),
             live: false,
         }
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
@@ -196,7 +225,7 @@ impl FrameSource for RawSource {
                     return Ok(None);
                 }
                 self.pos += 1;
-                buf.reshape(o.width, o.height, o.stride(), o.format);
+                buf.try_reshape(o.width, o.height, o.stride(), o.format, MAX_FRAME_BYTES)?;
                 let at = o.header_bytes + i * fb;
                 file.seek(SeekFrom::Start(at))
                     .and_then(|_| file.read_exact(&mut buf.data))
@@ -214,6 +243,12 @@ impl FrameSource for RawSource {
                     Some(s) => Timestamp::from_secs_f64(*s),
                     None => Timestamp::from_frame(*id, fps),
                 };
+                if let Some(kind) = super::naming::not_a_regular_file(path) {
+                    return Err(IoError::NotAFile {
+                        path: path.clone(),
+                        kind,
+                    });
+                }
                 let mut f =
                     File::open(path).map_err(|e| IoError::file(path.clone(), "cannot open", e))?;
                 let len = f
@@ -235,7 +270,7 @@ impl FrameSource for RawSource {
                         got: len,
                     });
                 }
-                buf.reshape(o.width, o.height, o.stride(), o.format);
+                buf.try_reshape(o.width, o.height, o.stride(), o.format, MAX_FRAME_BYTES)?;
                 f.read_exact(&mut buf.data)
                     .map_err(|e| IoError::file(path.clone(), "cannot read", e))?;
                 Ok(Some(()))
