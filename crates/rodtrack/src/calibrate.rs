@@ -246,13 +246,17 @@ pub fn calibrate_from_view(
         inputs.opencv_model_optional.as_ref(),
         &format!("camera {index}"),
     )?;
-    let rods = inputs
-        .rods
-        .iter()
-        .map(|r| {
-            calibrate_rod(r, view, intrinsics.as_ref())
-                .with_context(|| format!("camera {index}: calibrating rod {}", r.rod))
-        })
+    // Every rod's reference frame is this one.
+    let mut frames: Vec<(usize, FrameView)> = Vec::new();
+    for r in &inputs.rods {
+        if !frames.iter().any(|(i, _)| *i == r.reference.frame) {
+            frames.push((r.reference.frame, *view));
+        }
+    }
+    let rods = calibrate_rods(&inputs.rods, &frames, intrinsics.as_ref())
+        .into_iter()
+        .zip(&inputs.rods)
+        .map(|(c, r)| c.with_context(|| format!("camera {index}: calibrating rod {}", r.rod)))
         .collect::<Result<Vec<_>>>()?;
     Ok(CameraCalibration {
         name: inputs.camera_name.clone(),
@@ -1072,6 +1076,14 @@ fn auto_camera(
         fps: Some(cfg.fps.or(src.fps).unwrap_or(200.0)),
         rods: rods_in,
     };
+    // All rods again together, as `calibrate --inputs` does with the inputs saved here (the
+    // rods' common direction carries each one's scale along the travel).
+    let frames = [(0usize, view)];
+    let rods_cal: Vec<RodCalibration> = calibrate_rods(&inputs.rods, &frames, intrinsics.as_ref())
+        .into_iter()
+        .zip(rods_cal)
+        .map(|(together, alone)| together.unwrap_or(alone))
+        .collect();
     let calibration = camera_calibration(&inputs, index as u32, format, 200.0, rods_cal);
     Ok(AutoCamera {
         inputs,

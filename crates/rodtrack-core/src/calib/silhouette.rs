@@ -325,12 +325,8 @@ fn ring_rows_all(marker: &Marker, margin_mm: f64, step_mm: f64) -> Vec<(f64, boo
 
 /// The silhouette of a full ring across the rod at `lp`, bright (white print) or dark (black
 /// print): the careful scan of calibration (0.25 px steps over 0.7 R .. 1.4 R).
-fn ring_silhouette_any(
-    frame: &FrameView,
-    lp: &LinePoint,
-    bright: bool,
-) -> Option<crate::track::RingSilhouette> {
-    crate::track::ring_silhouette_measure(
+fn ring_silhouette_any(frame: &FrameView, lp: &LinePoint, bright: bool) -> Option<(f64, f64)> {
+    crate::track::ring_silhouette_scan(
         frame,
         lp,
         &crate::track::SilhouetteScan {
@@ -346,8 +342,8 @@ fn ring_silhouette_any(
 /// Measures the silhouette of the marker's rings along its whole length at the reference pose
 /// and fits `offset(s) = a_polarity + b (s - mean s)` robustly (white and black rings get their
 /// own offset: the shading across the rod moves a white ring's edges more than a black one's).
-/// The centre and the radius are those of the polarity that stands out more from the
-/// background. `None`
+/// The centre and the radius are those of the polarity whose rows scatter less around the
+/// fit (the black rings' when both scatter alike: a white ring's edge fades into the shading). `None`
 /// when too few rows stand out or they span too little of the marker.
 fn fit_silhouette(
     frame: &FrameView,
@@ -358,28 +354,13 @@ fn fit_silhouette(
 ) -> Option<SilhouetteFit> {
     let step_mm = 0.5;
     let mut rows: Vec<(f64, f64, f64, bool)> = Vec::new(); // (s, c, ratio, white)
-    let mut contrast: [Vec<f64>; 2] = [Vec::new(), Vec::new()]; // [black, white]
     for (u, white) in ring_rows_all(marker, 1.0, step_mm) {
         let s = s_ref + u;
         let lp = knots.at(s);
-        if let Some(m) = ring_silhouette_any(frame, &lp, white) {
-            rows.push((s, m.centre_px, m.half_width_px / lp.radius_px, white));
-            contrast[white as usize].push(m.contrast_dn);
+        if let Some((c, hw)) = ring_silhouette_any(frame, &lp, white) {
+            rows.push((s, c, hw / lp.radius_px, white));
         }
     }
-    // The polarity that stands out more from the background (the lesser side's contrast,
-    // median over the rows) gives the centre and the radius: a ring whose print is close to
-    // the background on one side (a black ring beside the rod's own shadow, a white one on a
-    // bright field) has that edge found too far out.
-    let median_contrast = |v: &mut Vec<f64>| {
-        if v.is_empty() {
-            0.0
-        } else {
-            median(v)
-        }
-    };
-    let black_contrast = median_contrast(&mut contrast[0]);
-    let white_contrast = median_contrast(&mut contrast[1]);
     let mut keep = vec![true; rows.len()];
     let mut coef = (0.0, 0.0, 0.0, 0.0); // (a_white, a_black, b, s_mean)
     let mut rms = f64::NAN;
@@ -457,9 +438,24 @@ fn fit_silhouette(
     let (aw, ab, b, sm) = coef;
     let n_black = rows.iter().zip(&keep).filter(|(r, k)| **k && !r.3).count();
     let n_white = rows.iter().zip(&keep).filter(|(r, k)| **k && r.3).count();
+    // Each polarity's scatter around the fit: the median distance of all its rows, those the
+    // fit left out included (a ring beside a shadow or a bright field has one edge found too
+    // far out, and that moves from ring to ring).
+    let scatter = |white: bool| {
+        let mut d: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.3 == white)
+            .map(|r| (r.1 - if white { aw } else { ab } - b * (r.0 - sm)).abs())
+            .collect();
+        if d.is_empty() {
+            f64::INFINITY
+        } else {
+            median(&mut d)
+        }
+    };
     let use_black = match polarity {
         Some(white) => !white && n_black >= 6,
-        None => n_black >= 6 && (black_contrast >= white_contrast || n_white < 6),
+        None => n_black >= 6 && (n_white < 6 || scatter(false) <= scatter(true)),
     };
     let centre = if use_black { ab } else { aw };
     let kept: Vec<(f64, f64, f64, bool)> = rows
