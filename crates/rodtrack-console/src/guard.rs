@@ -77,7 +77,7 @@ impl GuardConfig {
             return false;
         }
         let name = name.to_ascii_lowercase();
-        if name == "localhost" || self.allowed_hosts.iter().any(|h| *h == name) {
+        if name == "localhost" || self.allowed_hosts.contains(&name) {
             return true;
         }
         match name.parse::<IpAddr>() {
@@ -103,7 +103,7 @@ fn refuse(reason: String) -> Response {
     (StatusCode::FORBIDDEN, Json(json!({ "error": reason }))).into_response()
 }
 
-fn header_str<'a>(h: &'a HeaderMap, name: impl header::AsHeaderName) -> Option<&'a str> {
+fn header_str(h: &HeaderMap, name: impl header::AsHeaderName) -> Option<&str> {
     h.get(name).and_then(|v| v.to_str().ok())
 }
 
