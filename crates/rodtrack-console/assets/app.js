@@ -1,6 +1,9 @@
 // rodtrack console: live view, plots and calibration. Plain canvas drawing, no libraries.
 'use strict';
 
+// The session token the console put in the page: sent with every state-changing request.
+const TOKEN = (document.querySelector('meta[name="rodtrack-token"]') || {}).content || '';
+
 const STATUS = ['ok', 'not_found', 'occluded', 'out_of_view', 'predicted', 'lost', 'bad_frame'];
 const STATUS_COLOUR = {
   ok: '#3fd16b', not_found: '#ff5555', occluded: '#ffa931', out_of_view: '#8a8f96',
@@ -260,7 +263,9 @@ function showStats(m) {
 
 // ------------------------------------------------------------------- calibration
 async function api(method, path, body) {
-  const r = await fetch(path, { method, headers: body ? { 'Content-Type': 'application/json' } : {}, body: body ? JSON.stringify(body) : undefined });
+  const headers = { 'X-Rodtrack-Token': TOKEN };
+  if (body) headers['Content-Type'] = 'application/json';
+  const r = await fetch(path, { method, headers, body: body ? JSON.stringify(body) : undefined });
   const j = await r.json();
   if (!r.ok) throw new Error(j.error || r.statusText);
   return j;

@@ -57,6 +57,7 @@
 
 pub mod calib;
 pub mod error;
+mod guard;
 pub mod image;
 pub mod overlay;
 pub(crate) mod rows;
@@ -267,6 +268,8 @@ pub(crate) struct Shared {
     pub stats: Mutex<Option<PipelineStats>>,
     pub spent: Spent,
     pub calib: Mutex<CalibState>,
+    /// The session token given to the page (see [`guard`]).
+    pub token: String,
 }
 
 impl Shared {
@@ -322,6 +325,17 @@ impl Shared {
     }
 }
 
+/// How the console serves.
+#[derive(Debug, Clone, Default)]
+pub struct ConsoleOptions {
+    /// Host names (without port) the console answers to besides IP addresses and `localhost`
+    /// (`--allow-host`): any other `Host` header is refused, against DNS rebinding.
+    pub allowed_hosts: Vec<String>,
+}
+
+/// The header a state-changing request must carry the console's session token in.
+pub const TOKEN_HEADER: &str = guard::TOKEN_HEADER;
+
 /// Starts the console.
 #[derive(Debug)]
 pub struct Console;
@@ -334,6 +348,16 @@ impl Console {
     pub fn start(
         addr: SocketAddr,
         calibration: Option<CalibrationContext>,
+    ) -> Result<ConsoleHandle, ConsoleError> {
+        Self::start_with(addr, calibration, &ConsoleOptions::default())
+    }
+
+    /// Like [`Console::start`], with `options` (host names to serve besides addresses and
+    /// `localhost`).
+    pub fn start_with(
+        addr: SocketAddr,
+        calibration: Option<CalibrationContext>,
+        options: &ConsoleOptions,
     ) -> Result<ConsoleHandle, ConsoleError> {
         let listener = std::net::TcpListener::bind(addr)
             .map_err(|source| ConsoleError::Bind { addr, source })?;
@@ -356,6 +380,16 @@ impl Console {
             stats: Mutex::new(None),
             spent: Spent::default(),
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
+            token: guard::new_token(),
+        });
+        let guard = Arc::new(guard::GuardConfig {
+            addr: local,
+            allowed_hosts: options
+                .allowed_hosts
+                .iter()
+                .map(|h| h.trim().to_ascii_lowercase())
+                .collect(),
+            token: shared.token.clone(),
         });
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
@@ -364,7 +398,7 @@ impl Console {
             .build()
             .map_err(ConsoleError::Runtime)?;
         let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-        let app = server::router(shared.clone(), stop_rx.clone());
+        let app = server::router(shared.clone(), stop_rx.clone(), guard);
         let thread = std::thread::Builder::new()
             .name("rodtrack-console".into())
             .spawn(move || {
@@ -414,6 +448,12 @@ impl ConsoleHandle {
     /// The page's URL.
     pub fn url(&self) -> String {
         format!("http://{}/", self.addr)
+    }
+
+    /// The session token state-changing requests must carry in [`TOKEN_HEADER`] (the page
+    /// gets it in a `<meta name="rodtrack-token">` tag).
+    pub fn token(&self) -> &str {
+        &self.shared.token
     }
 
     /// True when the next [`ConsoleHandle::publish_frame`] of `camera` would copy the frame

@@ -18,6 +18,8 @@
 //! | `POST /api/calibrate` | calibrate every rod of every camera with a frozen frame |
 //! | `POST /api/save` | write the calibration file (TOML) and the inputs beside it |
 //!
+//! Every request passes [`crate::guard`]'s checks first (Host, Origin, session token).
+//!
 //! A binary frame message is `[u32 LE n][n bytes of JSON header][pixels]`; the header holds
 //! `camera, frame_id, timestamp_s, width, height` (full resolution), `pw, ph, channels, factor`
 //! (the preview) and `overlays` ([`crate::RodOverlay`]).
@@ -62,7 +64,11 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-pub(crate) fn router(shared: Arc<Shared>, stop: tokio::sync::watch::Receiver<bool>) -> Router {
+pub(crate) fn router(
+    shared: Arc<Shared>,
+    stop: tokio::sync::watch::Receiver<bool>,
+    guard: Arc<crate::guard::GuardConfig>,
+) -> Router {
     Router::new()
         .route("/", get(index))
         .route("/app.js", get(app_js))
@@ -87,6 +93,10 @@ pub(crate) fn router(shared: Arc<Shared>, stop: tokio::sync::watch::Receiver<boo
         .route("/api/calibrate", post(calibrate))
         .route("/api/save", post(save_file))
         .with_state(AppState { shared, stop })
+        .layer(axum::middleware::from_fn_with_state(
+            guard,
+            crate::guard::guard,
+        ))
 }
 
 /// An API error: 400 with `{"error": message}`.
@@ -110,10 +120,14 @@ impl IntoResponse for ApiError {
 
 type ApiResult<T> = Result<T, ApiError>;
 
-async fn index() -> impl IntoResponse {
+/// The page, with this console's session token in its `rodtrack-token` meta tag.
+async fn index(State(st): State<AppState>) -> impl IntoResponse {
     (
-        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
-        INDEX_HTML,
+        [
+            (header::CONTENT_TYPE, "text/html; charset=utf-8"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        INDEX_HTML.replace("__RODTRACK_TOKEN__", &st.shared.token),
     )
 }
 async fn app_js() -> impl IntoResponse {

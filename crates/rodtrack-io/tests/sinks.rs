@@ -119,8 +119,14 @@ fn jsonl_round_trip() {
     let mut keys_sorted = keys.clone();
     keys_sorted.sort_unstable();
     assert_eq!(keys_sorted, want);
-    assert_eq!(first["camera"], "0");
+    // `camera` is a number, like `rod`; fused rows say "fused".
+    assert_eq!(first["camera"], 0);
+    assert!(first["rod"].is_u64());
     assert_eq!(first["status"], "ok");
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert!(v["camera"].is_u64() || v["camera"] == "fused", "{line}");
+    }
     let back = read_measurements_jsonl(&path).unwrap();
     assert_eq!(back.len(), rows.len());
     for ((m, _), r) in back.iter().zip(&rows) {

@@ -5,8 +5,8 @@ use crate::calibration_io::read_inputs;
 use crate::simulate::build;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{
-    CalibrationContext, CameraOverlays, CameraSetup, Console, ConsoleHandle, OwnedFrame,
-    PipelineStats, RodOverlay,
+    CalibrationContext, CameraOverlays, CameraSetup, Console, ConsoleHandle, ConsoleOptions,
+    OwnedFrame, PipelineStats, RodOverlay,
 };
 
 use rodtrack_core::{
@@ -26,6 +26,10 @@ pub struct Args {
     /// Address to serve the console on (loopback by default; `0.0.0.0:8620` serves the network).
     #[arg(long, default_value = rodtrack_console::DEFAULT_ADDR)]
     pub addr: SocketAddr,
+    /// Also answer to this host name (repeat for several): requests whose `Host` is not an IP
+    /// address, `localhost` or an allowed name are refused (DNS rebinding).
+    #[arg(long = "allow-host")]
+    pub allow_host: Vec<String>,
     /// Run on the built-in simulator: the scenario in a loop at real time, tracked in enhanced
     /// mode and shown live.
     #[arg(long, conflicts_with = "inputs")]
@@ -69,12 +73,15 @@ pub fn run(args: Args) -> Result<()> {
             reference: Some(reference),
         });
     }
-    let console = Console::start(
+    let console = Console::start_with(
         args.addr,
         Some(CalibrationContext {
             out_path: Some(args.out.clone()),
             cameras,
         }),
+        &ConsoleOptions {
+            allowed_hosts: args.allow_host.clone(),
+        },
     )
     .context("cannot start the console")?;
     println!(
@@ -181,12 +188,15 @@ fn run_demo(args: &Args) -> Result<()> {
             reference: Some(OwnedFrame::from_view(&view, meta.frame_id, 0.0)),
         });
     }
-    let console = Console::start(
+    let console = Console::start_with(
         args.addr,
         Some(CalibrationContext {
             out_path: Some(args.out.clone()),
             cameras: setups,
         }),
+        &ConsoleOptions {
+            allowed_hosts: args.allow_host.clone(),
+        },
     )
     .context("cannot start the console")?;
     println!(

@@ -13,6 +13,7 @@ mod score;
 mod sim_source;
 mod simulate;
 mod track;
+mod track_out;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

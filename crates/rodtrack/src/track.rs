@@ -34,6 +34,7 @@
 //!   flushed and the [`rodtrack_io::runtime::PipelineReport`] printed.
 
 use crate::calibration_io::read_calibration;
+pub use crate::track_out::{check_out_is_not_an_input, is_broken_pipe, open_sinks};
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{Console, ConsoleHandle};
 use rodtrack_core::filter::{FilterBank, FilterConfig};
@@ -46,10 +47,7 @@ use rodtrack_io::runtime::{
     PipelineCounters, PipelineReport, WriteMode,
 };
 use rodtrack_io::source::{OpenOptions, SourceInfo};
-use rodtrack_io::{
-    CsvSink, FrameBuffer, FrameSource, JsonlSink, MeasurementSink, MultiSink, SourceError,
-    SourceFactory, UdpSink,
-};
+use rodtrack_io::{FrameBuffer, FrameSource, MeasurementSink, SourceError, SourceFactory};
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -208,20 +206,6 @@ struct ConsoleRows<S> {
     stop_on_broken_pipe: Option<Arc<AtomicBool>>,
 }
 
-/// True when `e` is a write to a pipe whose reader has gone.
-pub fn is_broken_pipe(e: &rodtrack_io::IoError) -> bool {
-    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(e);
-    while let Some(err) = cur {
-        if let Some(io) = err.downcast_ref::<std::io::Error>() {
-            if io.kind() == std::io::ErrorKind::BrokenPipe {
-                return true;
-            }
-        }
-        cur = err.source();
-    }
-    false
-}
-
 impl<S: MeasurementSink> MeasurementSink for ConsoleRows<S> {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), rodtrack_io::IoError> {
         let r = self.inner.write(rows);
@@ -250,59 +234,6 @@ pub fn source_factory() -> SourceFactory {
     #[cfg(feature = "genicam")]
     rodtrack_genicam::register(&mut factory);
     factory
-}
-
-/// Opens the file sink (`-`: standard output) and the UDP sink. The UDP address is checked
-/// (and its socket opened) first: the output file is created, truncating an existing one,
-/// only when every other sink is open.
-pub fn open_sinks(
-    out: &std::path::Path,
-    format: Option<&str>,
-    udp: Option<&str>,
-) -> Result<MultiSink> {
-    let jsonl = match format {
-        Some(f) => f == "jsonl",
-        None => out.extension().is_some_and(|e| e == "jsonl" || e == "json"),
-    };
-    let udp = udp.map(UdpSink::new).transpose()?;
-    let mut sink = MultiSink::new();
-    if out.as_os_str() == "-" {
-        let stdout = std::io::stdout();
-        if jsonl {
-            sink.push(Box::new(JsonlSink::new(stdout, "standard output")));
-        } else {
-            sink.push(Box::new(CsvSink::new(stdout, "standard output")?));
-        }
-    } else if jsonl {
-        sink.push(Box::new(JsonlSink::create(out)?));
-    } else {
-        sink.push(Box::new(CsvSink::create(out)?));
-    }
-    if let Some(u) = udp {
-        sink.push(Box::new(u));
-    }
-    Ok(sink)
-}
-
-/// Refuses an output path that is one of the run's own input files (the calibration, ...):
-/// it would be truncated before being read.
-pub fn check_out_is_not_an_input(out: &std::path::Path, inputs: &[&std::path::Path]) -> Result<()> {
-    if out.as_os_str() == "-" {
-        return Ok(());
-    }
-    let Ok(o) = out.canonicalize() else {
-        return Ok(()); // Does not exist yet: not an input.
-    };
-    for i in inputs {
-        if i.canonicalize().is_ok_and(|c| c == o) {
-            bail!(
-                "--out {} is the input file {}: refusing to overwrite it",
-                out.display(),
-                i.display()
-            );
-        }
-    }
-    Ok(())
 }
 
 /// Sets `stop` on Ctrl-C; a second Ctrl-C while stopping ends the process the usual way.

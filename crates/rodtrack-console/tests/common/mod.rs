@@ -14,14 +14,56 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// One HTTP/1.1 request with `Connection: close`; returns (status, body).
+/// The session token the console gives its page (its `rodtrack-token` meta tag).
+pub fn page_token(addr: SocketAddr) -> String {
+    let (st, page) = http_with(addr, "GET", "/", None, &[]);
+    assert_eq!(st, 200);
+    let page = String::from_utf8_lossy(&page).into_owned();
+    let at = page
+        .find("name=\"rodtrack-token\" content=\"")
+        .expect("the page carries its session token");
+    let rest = &page[at + "name=\"rodtrack-token\" content=\"".len()..];
+    rest[..rest.find('"').unwrap()].to_string()
+}
+
+/// One HTTP/1.1 request with `Connection: close`, as the console's page makes it (with the
+/// page's session token on state-changing requests); returns (status, body).
 pub fn http(addr: SocketAddr, method: &str, path: &str, body: Option<&Value>) -> (u16, Vec<u8>) {
+    if method == "GET" {
+        return http_with(addr, method, path, body, &[]);
+    }
+    let token = page_token(addr);
+    http_with(
+        addr,
+        method,
+        path,
+        body,
+        &[("X-Rodtrack-Token", token.as_str())],
+    )
+}
+
+/// One HTTP/1.1 request with these extra headers (a `Host` among them replaces the
+/// default); returns (status, body).
+pub fn http_with(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    body: Option<&Value>,
+    headers: &[(&str, &str)],
+) -> (u16, Vec<u8>) {
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     let body = body.map(|b| b.to_string()).unwrap_or_default();
+    let mut extra = String::new();
+    if !headers.iter().any(|(k, _)| k.eq_ignore_ascii_case("host")) {
+        extra.push_str(&format!("Host: {addr}\r\n"));
+    }
+    for (k, v) in headers {
+        extra.push_str(&format!("{k}: {v}\r\n"));
+    }
     write!(
         s,
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        "{method} {path} HTTP/1.1\r\n{extra}Connection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
         body.len()
     )
     .unwrap();
