@@ -342,8 +342,8 @@ fn ring_silhouette_any(frame: &FrameView, lp: &LinePoint, bright: bool) -> Optio
 /// Measures the silhouette of the marker's rings along its whole length at the reference pose
 /// and fits `offset(s) = a_polarity + b (s - mean s)` robustly (white and black rings get their
 /// own offset: the shading across the rod moves a white ring's edges more than a black one's).
-/// The centre and the radius are those of the polarity whose rows scatter less around the
-/// fit (the black rings' when both scatter alike: a white ring's edge fades into the shading). `None`
+/// The centre and the radius are the black rings', unless most of them fall out of line with
+/// the fit; then the white rings'. `None`
 /// when too few rows stand out or they span too little of the marker.
 fn fit_silhouette(
     frame: &FrameView,
@@ -438,24 +438,13 @@ fn fit_silhouette(
     let (aw, ab, b, sm) = coef;
     let n_black = rows.iter().zip(&keep).filter(|(r, k)| **k && !r.3).count();
     let n_white = rows.iter().zip(&keep).filter(|(r, k)| **k && r.3).count();
-    // Each polarity's scatter around the fit: the median distance of all its rows, those the
-    // fit left out included (a ring beside a shadow or a bright field has one edge found too
-    // far out, and that moves from ring to ring).
-    let scatter = |white: bool| {
-        let mut d: Vec<f64> = rows
-            .iter()
-            .filter(|r| r.3 == white)
-            .map(|r| (r.1 - if white { aw } else { ab } - b * (r.0 - sm)).abs())
-            .collect();
-        if d.is_empty() {
-            f64::INFINITY
-        } else {
-            median(&mut d)
-        }
-    };
+    // The black rings are the witnesses (a white ring's edge fades into the shading) unless
+    // most of them are out of line with the fit: a black ring beside the rod's own shadow has
+    // one edge found too far out, by an amount that changes from ring to ring.
+    let n_all_black = rows.iter().filter(|r| !r.3).count();
     let use_black = match polarity {
         Some(white) => !white && n_black >= 6,
-        None => n_black >= 6 && (n_white < 6 || scatter(false) <= scatter(true)),
+        None => n_black >= 6 && (n_white < 6 || 2 * n_black >= n_all_black),
     };
     let centre = if use_black { ab } else { aw };
     let kept: Vec<(f64, f64, f64, bool)> = rows
