@@ -268,11 +268,6 @@ pub(super) fn refine_centre_line(
     (curve, first)
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
-}
-
 /// The rod's silhouette along the marker in one frame.
 pub(super) struct SilhouetteFit {
     /// `(s, lateral offset)` of every kept row, px along the knots' normal, both polarities
