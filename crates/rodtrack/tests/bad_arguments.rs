@@ -10,6 +10,9 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
+
+mod common;
+use common::Fixture;
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
@@ -51,37 +54,9 @@ fn assert_error(o: &Output, needles: &[&str]) {
     );
 }
 
-struct Fixture {
-    dir: PathBuf,
-    calib: PathBuf,
-}
-
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad_arguments");
-        let _ = std::fs::remove_dir_all(&dir);
-        let o = rodtrack(&[
-            "simulate",
-            "--scenario",
-            "static",
-            "--out",
-            dir.to_str().unwrap(),
-            "--frames",
-            &FRAMES.to_string(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let calib = dir.join("c.toml");
-        let o = rodtrack(&[
-            "calibrate",
-            "--inputs",
-            dir.join("cam0.json").to_str().unwrap(),
-            "--out",
-            calib.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        Fixture { dir, calib }
-    })
+    F.get_or_init(|| common::recording("bad_arguments", "", "static", FRAMES))
 }
 
 /// Camera 0's calibration inputs, changed by `edit`, written beside the original.

@@ -7,6 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
+mod common;
+use common::Fixture;
+
 const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
 const FRAMES: u64 = 10;
 
@@ -35,38 +38,9 @@ fn assert_error(o: &Output, needles: &[&str]) {
     assert!(!e.contains("panicked"), "{e}");
 }
 
-/// A simulated recording (one camera, `FRAMES` frames) and its calibration, made once.
-struct Fixture {
-    dir: PathBuf,
-    calib: PathBuf,
-}
-
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad_input");
-        let _ = std::fs::remove_dir_all(&dir);
-        let o = rodtrack(&[
-            "simulate",
-            "--scenario",
-            "exp1",
-            "--out",
-            dir.to_str().unwrap(),
-            "--frames",
-            &FRAMES.to_string(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let calib = dir.join("c.toml");
-        let o = rodtrack(&[
-            "calibrate",
-            "--inputs",
-            dir.join("cam0.json").to_str().unwrap(),
-            "--out",
-            calib.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        Fixture { dir, calib }
-    })
+    F.get_or_init(|| common::recording("bad_input", "", "exp1", FRAMES))
 }
 
 /// A copy of camera 0's frames in a new folder.

@@ -7,8 +7,11 @@
 
 use rodtrack_io::runtime::track_memory_budget;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::OnceLock;
+
+mod common;
+use common::Fixture;
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
@@ -16,45 +19,9 @@ const GOOD: u64 = 5;
 /// A run over six frames takes well under a second; a blocked or swapping run is stopped.
 const TIMEOUT: Duration = Duration::from_secs(60);
 
-struct Fixture {
-    dir: PathBuf,
-    calib: PathBuf,
-}
-
-fn rodtrack(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("cannot run rodtrack")
-}
-
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("hostile_files");
-        let _ = std::fs::remove_dir_all(&dir);
-        let sim = dir.join("sim");
-        let o = rodtrack(&[
-            "simulate",
-            "--scenario",
-            "static",
-            "--out",
-            sim.to_str().unwrap(),
-            "--frames",
-            &GOOD.to_string(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let calib = dir.join("c.toml");
-        let o = rodtrack(&[
-            "calibrate",
-            "--inputs",
-            sim.join("cam0.json").to_str().unwrap(),
-            "--out",
-            calib.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        Fixture { dir, calib }
-    })
+    F.get_or_init(|| common::recording("hostile_files", "sim", "static", GOOD))
 }
 
 /// The five good frames of camera 0 in a new folder.

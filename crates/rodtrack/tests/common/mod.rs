@@ -1,0 +1,56 @@
+//! What the command-line test suites share: running the binary and a simulated recording with
+//! its calibration, made once per suite.
+#![allow(dead_code, clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The binary under test.
+pub const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
+
+/// Runs the binary to completion.
+pub fn rodtrack(args: &[&str]) -> Output {
+    Command::new(BIN).args(args).output().unwrap()
+}
+
+/// A simulated recording and the calibration of its camera 0.
+pub struct Fixture {
+    /// The recording's folder (`cam0/`, `cam0.json`, ...) under `root`.
+    pub rec: PathBuf,
+    /// The suite's own folder.
+    pub dir: PathBuf,
+    /// `c.toml` in `dir`: camera 0 calibrated.
+    pub calib: PathBuf,
+}
+
+/// Simulates `frames` frames of `scenario` into `<tmp>/<name>/<sub>` (`sub` empty: the suite's
+/// folder itself) and calibrates camera 0 into `<tmp>/<name>/c.toml`.
+pub fn recording(name: &str, sub: &str, scenario: &str, frames: u64) -> Fixture {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    let rec = if sub.is_empty() {
+        dir.clone()
+    } else {
+        dir.join(sub)
+    };
+    let o = rodtrack(&[
+        "simulate",
+        "--scenario",
+        scenario,
+        "--out",
+        rec.to_str().unwrap(),
+        "--frames",
+        &frames.to_string(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let calib = dir.join("c.toml");
+    let o = rodtrack(&[
+        "calibrate",
+        "--inputs",
+        rec.join("cam0.json").to_str().unwrap(),
+        "--out",
+        calib.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    Fixture { rec, dir, calib }
+}
