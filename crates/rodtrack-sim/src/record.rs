@@ -176,27 +176,27 @@ pub fn write_recording(
         fs::create_dir_all(&dir).map_err(|e| io_err(&dir, e))?;
         let rdir = out_dir.join(format!("{}_ref", cam.name));
         fs::create_dir_all(&rdir).map_err(|e| io_err(&rdir, e))?;
-        let meta = sim.render_reference(ci, buf)?;
-        write_png(
-            &rdir.join("000000.png"),
-            buf,
-            meta.width,
-            meta.height,
-            meta.format,
-            opts.png_fast,
-        )?;
-        if opts.calib.known_poses {
-            for (frame, rod, position_mm) in sim.known_pose_frames() {
-                let meta = sim.render_known_pose(ci, rod, position_mm, buf)?;
-                write_png(
-                    &rdir.join(format!("{frame:06}.png")),
-                    buf,
-                    meta.width,
-                    meta.height,
-                    meta.format,
-                    opts.png_fast,
-                )?;
-            }
+        // Frame 0: the reference; then, with known poses, one rod at a time at its poses.
+        let known = if opts.calib.known_poses {
+            sim.known_pose_frames()
+        } else {
+            Vec::new()
+        };
+        for pose in std::iter::once(None).chain(known.into_iter().map(Some)) {
+            let (frame, meta) = match pose {
+                None => (0, sim.render_reference(ci, buf)?),
+                Some((frame, rod, position_mm)) => {
+                    (frame, sim.render_known_pose(ci, rod, position_mm, buf)?)
+                }
+            };
+            write_png(
+                &rdir.join(format!("{frame:06}.png")),
+                buf,
+                meta.width,
+                meta.height,
+                meta.format,
+                opts.png_fast,
+            )?;
         }
         let inputs = sim.calibration_inputs_with(ci, opts.calib_seed, &opts.calib)?;
         let p = out_dir.join(format!("{}.json", cam.name));

@@ -1,14 +1,14 @@
 //! Image sequences: a folder (or pattern) of PNG, PGM/PPM or TIFF files.
 
 use super::naming::{list_image_files_noting, number_frames, TIMESTAMPS_FILE};
-use super::timestamps::read_timestamps_csv_noting;
+use super::timestamps::{read_capped_into, read_timestamps_csv_noting};
 use super::{FrameSource, SourceInfo, DEFAULT_FPS};
 use crate::frame::{FrameBuffer, Timestamp};
 use crate::{IoError, SourceError};
 use image::{ColorType, ImageDecoder, ImageFormat, ImageReader};
 use rodtrack_core::{LumaKind, PixelFormat};
 use std::collections::HashMap;
-use std::io::{Cursor, Read};
+use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 /// How to open an [`ImageSequence`].
@@ -126,40 +126,8 @@ impl ImageDecoderScratch {
     }
 
     fn load(&mut self, path: &Path) -> Result<(), IoError> {
-        self.file.clear();
-        if let Some(kind) = super::naming::not_a_regular_file(path) {
-            return Err(IoError::NotAFile {
-                path: path.to_path_buf(),
-                kind,
-            });
-        }
         let max = max_image_file_bytes(self.max_pixels());
-        let f = std::fs::File::open(path).map_err(|e| IoError::file(path, "cannot open", e))?;
-        let len = f
-            .metadata()
-            .map_err(|e| IoError::file(path, "cannot read", e))?
-            .len();
-        if len > max {
-            return Err(IoError::FileTooLarge {
-                path: path.to_path_buf(),
-                len,
-                max,
-            });
-        }
-        // The file may grow meanwhile: never read more than the cap.
-        f.take(max + 1)
-            .read_to_end(&mut self.file)
-            .map_err(|e| IoError::file(path, "cannot read", e))?;
-        if self.file.len() as u64 > max {
-            let len = self.file.len() as u64;
-            self.file.clear();
-            return Err(IoError::FileTooLarge {
-                path: path.to_path_buf(),
-                len,
-                max,
-            });
-        }
-        Ok(())
+        read_capped_into(path, max, &mut self.file)
     }
 
     /// Reads only the header: `(width, height, format the file would be read as)`.

@@ -15,6 +15,14 @@ pub const MAX_TIMESTAMP_S: f64 = 1e10;
 /// Reads a whole file of at most `max` bytes; refuses a path that is not a regular file
 /// (without opening it) and a longer file (without reading it).
 pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>, IoError> {
+    let mut out = Vec::new();
+    read_capped_into(path, max, &mut out)?;
+    Ok(out)
+}
+
+/// [`read_capped`] into a buffer the caller keeps (cleared first; left empty on error).
+pub fn read_capped_into(path: &Path, max: u64, out: &mut Vec<u8>) -> Result<(), IoError> {
+    out.clear();
     if let Some(kind) = super::naming::not_a_regular_file(path) {
         return Err(IoError::NotAFile {
             path: path.to_path_buf(),
@@ -33,18 +41,21 @@ pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>, IoError> {
             max,
         });
     }
-    let mut out = Vec::with_capacity(len as usize);
+    out.reserve(len as usize);
+    // The file may grow meanwhile: never read more than the cap.
     f.take(max + 1)
-        .read_to_end(&mut out)
+        .read_to_end(out)
         .map_err(|e| IoError::file(path, "cannot read", e))?;
     if out.len() as u64 > max {
+        let len = out.len() as u64;
+        out.clear();
         return Err(IoError::FileTooLarge {
             path: path.to_path_buf(),
-            len: out.len() as u64,
+            len,
             max,
         });
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Reads a timestamps sidecar (see [`parse_timestamps_csv`]); warnings are dropped.
