@@ -20,5 +20,5 @@ pub use error::CoreError;
 pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
-pub use pipeline::{CameraPipeline, FrameSetFilter};
+pub use pipeline::{CameraFilter, CameraPipeline, FrameSetFilter, SetFusion};
 pub use track::{Mode, RodResult, RodTracker, Stage};

@@ -1,7 +1,9 @@
 //! One camera, one frame, every rod: the per-camera pipeline that turns a frame into rows.
 
 use crate::calib::CameraCalibration;
+use crate::filter::{FilterBank, FilterConfig};
 use crate::frame::FrameView;
+use crate::fusion::{Disagreement, Fuser, FusionConfig, OutOfSync};
 use crate::measurement::{CameraId, Measurement, Status};
 use crate::track::{Mode, RodResult, RodTracker};
 use crate::CoreError;
@@ -139,34 +141,106 @@ pub fn mark_fused_bad_frames(raw: &[Measurement], fused: &mut [Measurement]) {
     }
 }
 
+/// The temporal filter tuned to the measurement noise of `mode`: the one tuning that
+/// [`CameraFilter`], [`SetFusion`] and [`FrameSetFilter`] use.
+///
+/// ```
+/// use rodtrack_core::{pipeline::filter_config, Mode};
+/// assert!(filter_config(Mode::Paper).angle_noise_rad > filter_config(Mode::Enhanced).angle_noise_rad);
+/// ```
+pub fn filter_config(mode: Mode) -> FilterConfig {
+    let mut config = FilterConfig::default();
+    if mode == Mode::Paper {
+        // The paper's resolution: about 1 px (0.6-0.9 mm) and 0.013 rad.
+        config.position_noise_mm = 0.3;
+        config.angle_noise_rad = 0.013;
+    }
+    config
+}
+
+/// One camera's part of the temporal filter: its rows through its per-rod filters (a runtime
+/// runs it in the camera's own thread).
+#[derive(Debug, Clone)]
+pub struct CameraFilter {
+    bank: FilterBank,
+}
+
+impl CameraFilter {
+    /// Filters tuned for `mode` ([`filter_config`]).
+    pub fn new(mode: Mode) -> Self {
+        CameraFilter {
+            bank: FilterBank::new(filter_config(mode)),
+        }
+    }
+
+    /// Appends the filtered row of each camera row of `rows` (fused rows are not a camera's
+    /// and are skipped).
+    pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
+        for m in rows {
+            if let CameraId::Camera(_) = m.camera {
+                out.push(self.bank.update(m).sanitized());
+            }
+        }
+    }
+}
+
+/// The fusion part of the temporal filter: the measured rows of a frame set fused per rod
+/// (camera [`CameraId::Fused`]) and filtered again.
+#[derive(Debug, Clone)]
+pub struct SetFusion {
+    fuser: Fuser,
+    bank: FilterBank,
+}
+
+impl SetFusion {
+    /// Fusion and filters tuned for `mode` ([`filter_config`]).
+    pub fn new(mode: Mode) -> Self {
+        SetFusion {
+            fuser: Fuser::new(FusionConfig::default()),
+            bank: FilterBank::new(filter_config(mode)),
+        }
+    }
+
+    /// Appends the fused rows of the set's measured (unfiltered) rows `raw`.
+    pub fn process(&mut self, raw: &[Measurement], out: &mut Vec<Measurement>) {
+        let start = out.len();
+        self.fuser.process(raw, &mut self.bank, out);
+        for m in &mut out[start..] {
+            *m = m.sanitized();
+        }
+        mark_fused_bad_frames(raw, &mut out[start..]);
+    }
+
+    /// Cameras that disagreed in the last frame set.
+    pub fn disagreements(&self) -> &[Disagreement] {
+        self.fuser.disagreements()
+    }
+
+    /// Cameras out of sync in the last frame set.
+    pub fn out_of_sync(&self) -> &[OutOfSync] {
+        self.fuser.out_of_sync()
+    }
+}
+
 /// The temporal filter and the fusion over one frame set (all cameras of one trigger): every
-/// camera's rows go through that camera's per-rod filters, and, with several cameras, the rows
-/// of one rod are fused (camera `Fused`) and filtered again. No added delay: the rows for
-/// frame n use frame n.
+/// camera's rows go through that camera's [`CameraFilter`], and, with several cameras, the
+/// rows of one rod are fused by [`SetFusion`]. No added delay: the rows for frame n use
+/// frame n. A runtime that filters each camera in its own thread runs the two parts apart and
+/// gets the same rows.
 #[derive(Debug, Clone)]
 pub struct FrameSetFilter {
-    config: crate::filter::FilterConfig,
-    per_camera: Vec<crate::filter::FilterBank>,
-    fuser: crate::fusion::Fuser,
-    fused: crate::filter::FilterBank,
-    fuse: bool,
+    mode: Mode,
+    per_camera: Vec<CameraFilter>,
+    fusion: Option<SetFusion>,
 }
 
 impl FrameSetFilter {
     /// Filters tuned to the measurement noise of `mode`; `fuse` adds fused rows.
     pub fn new(mode: Mode, fuse: bool) -> FrameSetFilter {
-        let mut config = crate::filter::FilterConfig::default();
-        if mode == Mode::Paper {
-            // The paper's resolution: about 1 px (0.6-0.9 mm) and 0.013 rad.
-            config.position_noise_mm = 0.3;
-            config.angle_noise_rad = 0.013;
-        }
         FrameSetFilter {
-            config,
+            mode,
             per_camera: Vec::new(),
-            fuser: crate::fusion::Fuser::new(crate::fusion::FusionConfig::default()),
-            fused: crate::filter::FilterBank::new(config),
-            fuse,
+            fusion: fuse.then(|| SetFusion::new(mode)),
         }
     }
 
@@ -178,27 +252,21 @@ impl FrameSetFilter {
             };
             let c = c as usize;
             while self.per_camera.len() <= c {
-                self.per_camera
-                    .push(crate::filter::FilterBank::new(self.config));
+                self.per_camera.push(CameraFilter::new(self.mode));
             }
-            out.push(self.per_camera[c].update(m).sanitized());
+            self.per_camera[c].process(std::slice::from_ref(m), out);
         }
-        if self.fuse {
-            let start = out.len();
-            self.fuser.process(raw, &mut self.fused, out);
-            for m in &mut out[start..] {
-                *m = m.sanitized();
-            }
-            mark_fused_bad_frames(raw, &mut out[start..]);
+        if let Some(f) = self.fusion.as_mut() {
+            f.process(raw, out);
         }
     }
 
     /// Cameras that disagreed in the last frame set.
-    pub fn disagreements(&self) -> &[crate::fusion::Disagreement] {
-        self.fuser.disagreements()
+    pub fn disagreements(&self) -> &[Disagreement] {
+        self.fusion.as_ref().map_or(&[], |f| f.disagreements())
     }
     /// Cameras out of sync in the last frame set.
-    pub fn out_of_sync(&self) -> &[crate::fusion::OutOfSync] {
-        self.fuser.out_of_sync()
+    pub fn out_of_sync(&self) -> &[OutOfSync] {
+        self.fusion.as_ref().map_or(&[], |f| f.out_of_sync())
     }
 }

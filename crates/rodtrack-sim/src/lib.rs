@@ -51,6 +51,7 @@
 //! 2 x 2 for moving objects. Speed: `cargo bench -p rodtrack-sim --bench render -- fast
 //! gameplay` (see the crate's bench for the numbers).
 
+pub mod build;
 pub mod cameras;
 pub mod error;
 pub mod geom;
@@ -62,8 +63,10 @@ pub mod rng;
 pub mod scenario;
 pub mod scene;
 pub mod sim;
+pub mod source;
 pub mod variations;
 
+pub use build::{build_simulation, calibrate_sim_camera, SimCalibration};
 pub use cameras::{default_cameras, NoiseModel, SimCamera};
 pub use error::SimError;
 pub use geom::{RodPose, WorldState};
@@ -73,4 +76,5 @@ pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
 pub use sim::{CalibOptions, FrameMeta, Simulation, TruthRow};
+pub use source::{register_sim_source, SimSource};
 pub use variations::{apply_variation, VARIATION_NAMES};

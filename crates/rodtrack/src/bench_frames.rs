@@ -1,11 +1,11 @@
 //! `rodtrack bench-frames`: per-frame processing time on recorded frames, as JSON, so that
 //! other tools (bench/compare_opencv.py) can compare on the very same frames.
 
-use crate::calibration_io::read_calibration;
 use anyhow::{bail, Context, Result};
 use rodtrack_core::{CameraPipeline, FrameView, Measurement, Mode, PixelFormat};
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
+use rodtrack_sdk::read_calibration;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -2,7 +2,7 @@
 //!
 //! The real-time simulator (`sim://SCENARIO?camera=N&realtime=1`, paced at the scenario's
 //! 200 fps, `live`) feeds the runtime pipeline exactly as `rodtrack track` runs live sources
-//! ([`crate::track::pipeline_config`]): the real per-camera [`CameraPipeline`]s, each camera's
+//! ([`rodtrack_sdk::pipeline_config`]): the real per-camera [`CameraPipeline`]s, each camera's
 //! temporal filter, the fusion, and a CSV sink (to a file with `--out`, else to a null writer;
 //! `--udp` adds the UDP stream to a receiver in this process).
 //!
@@ -30,7 +30,7 @@
 //! `--prerender 0` every frame is rendered in its capture thread, which on a small machine
 //! competes with tracking for the CPU.
 
-use crate::track::{install_ctrlc, pipeline_config, run_cameras, RunOptions, TrackCamera};
+use crate::track::{install_ctrlc, CliHooks};
 use anyhow::{Context, Result};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraPipeline, Mode};
@@ -39,6 +39,7 @@ use rodtrack_io::runtime::{
 };
 use rodtrack_io::source::OpenOptions;
 use rodtrack_io::{CsvSink, FrameBuffer, FrameSource, MultiSink, UdpSink};
+use rodtrack_sdk::{pipeline_config, Session, SessionCamera, SessionOptions};
 use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -111,7 +112,7 @@ fn calibrate_sim_camera(
     c: usize,
     seed: u64,
 ) -> Result<CameraCalibration> {
-    Ok(crate::simulate::calibrate_sim_camera(sim, c, seed)?.3)
+    Ok(rodtrack_sim::calibrate_sim_camera(sim, c, seed)?.calibration)
 }
 
 /// The pipeline settings of the arguments: `track`'s for live sources, with the overrides.
@@ -163,7 +164,13 @@ impl RunResult {
 pub fn run(args: Args) -> Result<()> {
     let ncam = args.cameras as usize;
     eprintln!("calibrating {ncam} simulated camera(s) ...");
-    let mut sim = crate::simulate::build(&args.scenario, Some(args.frames), args.seed, false)?;
+    let mut sim = rodtrack_sim::build_simulation(
+        &args.scenario,
+        Some(args.frames),
+        args.seed,
+        false,
+        "default",
+    )?;
     let cals = (0..ncam)
         .map(|c| calibrate_sim_camera(&mut sim, c, args.seed))
         .collect::<Result<Vec<_>>>()?;
@@ -225,7 +232,7 @@ fn run_once(
     config: PipelineConfig,
     stop: &Arc<AtomicBool>,
 ) -> Result<RunResult> {
-    let factory = crate::track::source_factory();
+    let factory = rodtrack_sdk::source_factory();
     let lateness = Arc::new(Mutex::new(LatencyHistogram::new()));
     let mut cameras = Vec::new();
     for cal in cals {
@@ -254,11 +261,10 @@ fn run_once(
             lateness: LatencyHistogram::new(),
             publish: lateness.clone(),
         });
-        cameras.push(TrackCamera {
+        cameras.push(SessionCamera {
             label: format!("camera {} ({})", cal.index, cal.name),
             source,
             pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
-            console: None,
         });
     }
     let mut sink = MultiSink::new();
@@ -282,24 +288,27 @@ fn run_once(
     } else {
         None
     };
-    let options = RunOptions {
-        max_frames: None,
-        progress: false,
-        filter: Some(Mode::Enhanced),
+    let options = SessionOptions {
+        mode: Mode::Enhanced,
+        filter: true,
         config: Some(config),
+        ..SessionOptions::default()
     };
-    let (outcome, sink) = run_cameras(cameras, sink, stop, &options)?;
+    let (outcome, sink) = Session::from_cameras(cameras, options)
+        .with_stop_flag(stop.clone())
+        .with_hooks(CliHooks::new(false, None))
+        .run(sink)?;
     drop(sink);
     let datagrams = receiver.map(UdpReceiver::finish);
     let tracker = outcome
-        .process
+        .tracker
         .iter()
         .max_by_key(|p| p.p99)
         .copied()
         .unwrap_or_default();
     let lateness = lateness.lock().map(|h| h.summary()).unwrap_or_default();
     Ok(RunResult {
-        report: outcome.report,
+        report: outcome.pipeline,
         tracker,
         lateness,
         noise: None,

@@ -19,17 +19,14 @@
 //!    prints the residuals and warns (stderr) about badly spread path points and doubtful
 //!    references.
 
-use crate::calibration_io::{read_inputs, read_opencv_model, write_calibration};
-use crate::track::source_factory;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_core::calib::find::{
     find_markers, find_markers_in, path_points_from_sweep, FoundMarker,
 };
 use rodtrack_core::calib::validate::{MAX_RODS_PER_CAMERA, MAX_ROD_ID, MAX_TRAVEL_MM};
 use rodtrack_core::calib::{
-    calibrate_rod, calibrate_rods, CalibrationFile, CalibrationInputs, CameraCalibration,
-    ImageSize, OpencvModel, ReferenceFrames, ReferencePose, RodCalibration, RodInputs,
-    CALIBRATION_VERSION,
+    calibrate_rod, calibrate_rods, CalibrationInputs, CameraCalibration, ImageSize, OpencvModel,
+    ReferenceFrames, ReferencePose, RodCalibration, RodInputs,
 };
 use rodtrack_core::{CameraIntrinsics, FrameView, Marker, MarkerSpec, PixelFormat};
 use rodtrack_io::source::{
@@ -37,6 +34,10 @@ use rodtrack_io::source::{
     InputKind, InputSpec, OpenOptions,
 };
 use rodtrack_io::{FrameBuffer, FrameSource};
+use rodtrack_sdk::{
+    calibrate_camera_file, calibration_file, print_warning, read_inputs, read_opencv_model,
+    source_factory, write_calibration,
+};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rodtrack calibrate`.
@@ -107,8 +108,8 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut cameras = Vec::new();
     for (index, path) in args.inputs.iter().enumerate() {
-        let inputs = read_inputs(path)?;
-        let cam = calibrate_camera(&inputs, path, index as u32)?;
+        let inputs = read_inputs(path, &mut print_warning)?;
+        let cam = calibrate_camera_file(&inputs, path, index as u32)?;
         print_report(&cam);
         cameras.push(cam);
     }
@@ -117,11 +118,7 @@ pub fn run(args: Args) -> Result<()> {
 
 /// Validates and writes the calibration file.
 fn write_file(out: &Path, cameras: Vec<CameraCalibration>) -> Result<()> {
-    let file = CalibrationFile {
-        version: CALIBRATION_VERSION,
-        cameras,
-    };
-    file.validate().context("the calibration made is invalid")?;
+    let file = calibration_file(cameras)?;
     write_calibration(out, &file)?;
     println!("wrote {}", out.display());
     Ok(())
@@ -154,120 +151,6 @@ fn intrinsics_of(model: Option<&OpencvModel>, what: &str) -> Result<Option<Camer
                 .with_context(|| format!("{what}: field `opencv_model_optional`"))
         })
         .transpose()
-}
-
-/// Calibrates one camera from its inputs file (reference frames relative to it).
-pub fn calibrate_camera(
-    inputs: &CalibrationInputs,
-    path: &Path,
-    index: u32,
-) -> Result<CameraCalibration> {
-    let name = path.display().to_string();
-    rodtrack_core::calib::validate::validate_inputs(inputs, index)
-        .with_context(|| format!("calibration inputs {name} are invalid"))?;
-    let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
-        anyhow!(
-            "{name}: field `pixel_format`: unknown format {:?}",
-            inputs.pixel_format
-        )
-    })?;
-    let intrinsics = intrinsics_of(inputs.opencv_model_optional.as_ref(), &name)?;
-    let dir = path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(&inputs.reference_frames.dir);
-    let files =
-        list_image_files(&dir).with_context(|| format!("{name}: field `reference_frames.dir`"))?;
-    if inputs.reference_frames.reference_frame >= files.len() {
-        bail!(
-            "{name}: camera {index}: field `reference_frames.reference_frame`: frame {} does not \
-             exist ({} images in {})",
-            inputs.reference_frames.reference_frame,
-            files.len(),
-            dir.display()
-        );
-    }
-    // Every frame a rod names: its reference frame and its known poses.
-    let mut wanted: Vec<(u32, &str, usize)> = Vec::new();
-    for rod in &inputs.rods {
-        wanted.push((rod.rod, "reference.frame", rod.reference.frame));
-        for k in rod.all_known_poses() {
-            wanted.push((rod.rod, "known_poses", k.frame));
-        }
-    }
-    let mut frames: Vec<(usize, FrameBuffer)> = Vec::new();
-    for (rod, field, idx) in wanted {
-        if frames.iter().any(|(i, _)| *i == idx) {
-            continue;
-        }
-        let file = files.get(idx).ok_or_else(|| {
-            anyhow!(
-                "{name}: rod {rod}: field `{field}`: frame {idx} does not exist ({} images in {})",
-                files.len(),
-                dir.display()
-            )
-        })?;
-        let mut buf = FrameBuffer::new();
-        decode_image_file(file, Some(format), &mut buf)
-            .with_context(|| format!("reference frame {}", file.display()))?;
-        frames.push((idx, buf));
-    }
-    let mut views: Vec<(usize, FrameView)> = Vec::new();
-    for (i, buf) in &frames {
-        let view: FrameView = buf.view()?;
-        if view.width() != inputs.image_size.width || view.height() != inputs.image_size.height {
-            bail!(
-                "{name}: reference frame {i} is {}x{} but `image_size` says {}x{}",
-                view.width(),
-                view.height(),
-                inputs.image_size.width,
-                inputs.image_size.height
-            );
-        }
-        views.push((*i, view));
-    }
-    let rods = calibrate_rods(&inputs.rods, &views, intrinsics.as_ref())
-        .into_iter()
-        .zip(&inputs.rods)
-        .map(|(c, r)| c.with_context(|| format!("{name}: calibrating rod {}", r.rod)))
-        .collect::<Result<Vec<_>>>()?;
-    Ok(camera_calibration(inputs, index, format, 200.0, rods))
-}
-
-/// Calibrates every rod of one camera from its inputs and a reference frame already in memory
-/// (all rods at their reference pose in that frame).
-pub fn calibrate_from_view(
-    inputs: &CalibrationInputs,
-    view: &FrameView,
-    index: u32,
-    default_fps: f64,
-) -> Result<CameraCalibration> {
-    let intrinsics = intrinsics_of(
-        inputs.opencv_model_optional.as_ref(),
-        &format!("camera {index}"),
-    )?;
-    // Every rod's reference frame is this one.
-    let mut frames: Vec<(usize, FrameView)> = Vec::new();
-    for r in &inputs.rods {
-        if !frames.iter().any(|(i, _)| *i == r.reference.frame) {
-            frames.push((r.reference.frame, *view));
-        }
-    }
-    let rods = calibrate_rods(&inputs.rods, &frames, intrinsics.as_ref())
-        .into_iter()
-        .zip(&inputs.rods)
-        .map(|(c, r)| c.with_context(|| format!("camera {index}: calibrating rod {}", r.rod)))
-        .collect::<Result<Vec<_>>>()?;
-    Ok(CameraCalibration {
-        name: inputs.camera_name.clone(),
-        index,
-        image_width: view.width(),
-        image_height: view.height(),
-        pixel_format: view.format().name().to_string(),
-        fps: inputs.fps.unwrap_or(default_fps),
-        opencv_model: inputs.opencv_model_optional.clone(),
-        rods,
-    })
 }
 
 /// Prints per-rod residuals and warnings.
@@ -1206,7 +1089,7 @@ fn run_auto(args: &Args) -> Result<()> {
     let models = args
         .opencv_model
         .iter()
-        .map(|p| read_opencv_model(p))
+        .map(|p| read_opencv_model(p).map_err(anyhow::Error::from))
         .collect::<Result<Vec<_>>>()?;
     let rod_ids = args
         .rods

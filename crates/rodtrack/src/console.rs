@@ -1,13 +1,12 @@
 //! `rodtrack console`: the web console, on the built-in simulator (`--demo`) or for
 //! calibrating real cameras from their calibration inputs (`--inputs cam0.json ...`).
 
-use crate::calibration_io::read_inputs;
-use crate::simulate::build;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{
     CalibrationContext, CameraOverlays, CameraSetup, Console, ConsoleHandle, ConsoleOptions,
     OwnedFrame, PipelineStats, RodOverlay,
 };
+use rodtrack_sdk::{print_warning, read_inputs};
 
 use rodtrack_core::{
     CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, PixelFormat,
@@ -63,7 +62,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut cameras = Vec::new();
     for (index, path) in args.inputs.iter().enumerate() {
-        let inputs = read_inputs(path)?;
+        let inputs = read_inputs(path, &mut print_warning)?;
         rodtrack_core::calib::validate::validate_inputs(&inputs, index as u32)
             .with_context(|| format!("calibration inputs {} are invalid", path.display()))?;
         let reference = load_reference(&inputs, path)?;
@@ -171,15 +170,20 @@ fn run_demo(args: &Args) -> Result<()> {
         "rodtrack console --demo: two simulated 1440x1080 Bayer cameras, scenario `{}`",
         args.scenario
     );
-    let mut sim = build(&args.scenario, None, args.seed, false)?;
+    let mut sim =
+        rodtrack_sim::build_simulation(&args.scenario, None, args.seed, false, "default")?;
     let ncam = sim.cameras().len();
     let fps = 1.0 / sim.timestamp_s(1).max(1e-6);
     // Calibrate as `rodtrack demo` does; the inputs and reference frames go to the console.
     let mut cals = Vec::new();
     let mut setups = Vec::new();
     for c in 0..ncam {
-        let (inputs, buf, meta, cal) =
-            crate::simulate::calibrate_sim_camera(&mut sim, c, args.seed)?;
+        let rodtrack_sim::SimCalibration {
+            inputs,
+            reference: buf,
+            meta,
+            calibration: cal,
+        } = rodtrack_sim::calibrate_sim_camera(&mut sim, c, args.seed)?;
         let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
         cals.push(cal);
         setups.push(CameraSetup {

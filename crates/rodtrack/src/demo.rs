@@ -1,7 +1,6 @@
 //! `rodtrack demo`: the whole job on the built-in simulator, with nothing to set up.
 
 use crate::score::{print_table, score};
-use crate::simulate::build;
 use anyhow::Result;
 use rodtrack_core::{
     CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
@@ -34,13 +33,19 @@ pub fn run(args: Args) -> Result<()> {
         "rodtrack demo: two simulated 1440x1080 Bayer cameras over an 8-rod table, scenario `{}`",
         args.scenario
     );
-    let mut sim = build(&args.scenario, Some(args.frames), args.seed, false)?;
+    let mut sim = rodtrack_sim::build_simulation(
+        &args.scenario,
+        Some(args.frames),
+        args.seed,
+        false,
+        "default",
+    )?;
     let ncam = sim.cameras().len();
     // 1. Calibrate every camera from the inputs an operator would give (clicked points with
     // about 1 px error) and a reference frame.
     let mut cals = Vec::new();
     for c in 0..ncam {
-        let (_, _, _, cal) = crate::simulate::calibrate_sim_camera(&mut sim, c, args.seed)?;
+        let cal = rodtrack_sim::calibrate_sim_camera(&mut sim, c, args.seed)?.calibration;
         println!(
             "calibrated camera {c}: rods {:?}",
             cal.rods.iter().map(|r| r.rod).collect::<Vec<_>>()

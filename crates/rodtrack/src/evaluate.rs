@@ -3,10 +3,8 @@
 //! with the paper's reference numbers (SPEC section 7) and plots in the style of its figures
 //! 13-16.
 
-use crate::calibrate::calibrate_from_view;
 use crate::plots::{write_figure, Figure, Line, Panel, Series, PALETTE};
 use crate::score::{score, wrap_angle, Stats};
-use crate::simulate::build;
 use anyhow::{anyhow, bail, Context, Result};
 use plotters::style::RGBColor;
 use rodtrack_core::calib::CameraCalibration;
@@ -245,7 +243,9 @@ fn calibrate_all(sim: &mut rodtrack_sim::Simulation, seed: u64) -> Result<Calibr
                 s.spawn(move || -> Result<(CameraCalibration, Vec<String>)> {
                     let view =
                         FrameView::new(buf, meta.width, meta.height, meta.stride, meta.format)?;
-                    let cal = calibrate_from_view(inputs, &view, c as u32, 200.0)?;
+                    let cal = rodtrack_core::calib::calibrate_camera_from_view(
+                        inputs, &view, c as u32, 200.0,
+                    )?;
                     let warnings = cal
                         .rods
                         .iter()
@@ -305,7 +305,7 @@ fn run_scenario(
     cache: &CalibCache,
 ) -> Result<ScenarioResult> {
     let t0 = Instant::now();
-    let mut sim = build(&plan.name, plan.frames, seed, false)?;
+    let mut sim = rodtrack_sim::build_simulation(&plan.name, plan.frames, seed, false, "default")?;
     let sim_s = t0.elapsed().as_secs_f64();
     let ncam = sim.cameras().len();
     // Same lighting, same reference frame, same calibration.

@@ -3,17 +3,15 @@
 mod bench_frames;
 mod bench_latency;
 mod calibrate;
-mod calibration_io;
 mod console;
+mod console_hooks;
 mod demo;
 mod evaluate;
 mod marker;
 mod plots;
 mod score;
-mod sim_source;
 mod simulate;
 mod track;
-mod track_out;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

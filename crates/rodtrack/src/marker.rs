@@ -141,8 +141,12 @@ fn read_markers(path: &Path) -> Result<(Vec<(u32, MarkerSpec)>, bool)> {
     let value: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("{}: not valid JSON", path.display()))?;
     let Some(rods) = value.get("rods") else {
-        let spec: MarkerSpec = crate::calibration_io::from_json_warning_unknown(value, path)
-            .with_context(|| format!("{}: not a marker description", path.display()))?;
+        let spec: MarkerSpec = rodtrack_sdk::calibration::from_json_warning_unknown(
+            value,
+            path,
+            &mut rodtrack_sdk::print_warning,
+        )
+        .with_context(|| format!("{}: not a marker description", path.display()))?;
         return Ok((vec![(0, spec)], false));
     };
     let Some(rods) = rods.as_array() else {
@@ -159,8 +163,12 @@ fn read_markers(path: &Path) -> Result<(Vec<(u32, MarkerSpec)>, bool)> {
             })?;
         let spec = match r.get("marker") {
             None => MarkerSpec::default(),
-            Some(m) => crate::calibration_io::from_json_warning_unknown(m.clone(), path)
-                .with_context(|| format!("{}: rods[{i}].marker", path.display()))?,
+            Some(m) => rodtrack_sdk::calibration::from_json_warning_unknown(
+                m.clone(),
+                path,
+                &mut rodtrack_sdk::print_warning,
+            )
+            .with_context(|| format!("{}: rods[{i}].marker", path.display()))?,
         };
         out.push((rod, spec));
     }

@@ -1,10 +1,7 @@
 //! `rodtrack simulate`.
 
 use anyhow::{Context, Result};
-use rodtrack_sim::{
-    default_cameras, write_recording, CalibOptions, RecordOptions, RenderMode, Scenario,
-    SceneConfig, Simulation, SCENARIO_NAMES,
-};
+use rodtrack_sim::{write_recording, CalibOptions, RecordOptions, SCENARIO_NAMES};
 use std::io::Write;
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
@@ -46,65 +43,9 @@ pub struct Args {
     pub setup: String,
 }
 
-/// Builds a simulation of the reference table.
-pub fn build(
-    scenario: &str,
-    frames: Option<usize>,
-    seed: u64,
-    quality: bool,
-) -> Result<Simulation> {
-    build_setup(scenario, frames, seed, quality, "default")
-}
-
-/// [`build`] on a table set up as `setup` says (see [`rodtrack_sim::apply_variation`]).
-pub fn build_setup(
-    scenario: &str,
-    frames: Option<usize>,
-    seed: u64,
-    quality: bool,
-    setup: &str,
-) -> Result<Simulation> {
-    let mut scene = SceneConfig::default();
-    let mut cameras = default_cameras();
-    rodtrack_sim::apply_variation(setup, &mut scene, &mut cameras)?;
-    let mut sc = Scenario::by_name(scenario, &scene, seed)?;
-    if let Some(n) = frames {
-        sc = sc.with_frames(n);
-    }
-    let mode = if quality {
-        RenderMode::Quality
-    } else {
-        RenderMode::Fast
-    };
-    Ok(Simulation::new(scene, cameras, sc, mode)?.with_seed(seed))
-}
-
-/// Calibrates camera `c` of a simulation as an operator would: its simulated clicks (about
-/// 1 px of error) and a rendered reference frame. Returns the inputs, the reference frame and
-/// the calibration.
-pub fn calibrate_sim_camera(
-    sim: &mut Simulation,
-    c: usize,
-    seed: u64,
-) -> Result<(
-    rodtrack_core::calib::CalibrationInputs,
-    Vec<u8>,
-    rodtrack_sim::FrameMeta,
-    rodtrack_core::calib::CameraCalibration,
-)> {
-    let inputs = sim.calibration_inputs(c, seed)?;
-    let mut buf = vec![0u8; sim.frame_bytes(c)?];
-    let meta = sim.render_reference(c, &mut buf)?;
-    let view =
-        rodtrack_core::FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
-    let fps = 1.0 / sim.timestamp_s(1).max(1e-6);
-    let cal = crate::calibrate::calibrate_from_view(&inputs, &view, c as u32, fps)?;
-    Ok((inputs, buf, meta, cal))
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let mut sim = build_setup(
+    let mut sim = rodtrack_sim::build_simulation(
         &args.scenario,
         args.frames,
         args.seed,

@@ -1,5 +1,6 @@
 //! Calibration (paper 2.7): inputs, the calibration file, and the measurements that make it.
 
+pub mod camera;
 pub mod compute;
 pub mod file;
 pub mod find;
@@ -10,6 +11,7 @@ mod silhouette;
 pub mod travel;
 pub mod validate;
 
+pub use camera::{calibrate_camera, calibrate_camera_from_view};
 pub use compute::{calibrate_rod, calibrate_rod_with, RodExtras, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{
     CalibrationFile, CameraCalibration, EnhancedParams, PaperParams, Residuals, RodCalibration,

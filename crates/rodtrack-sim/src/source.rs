@@ -13,7 +13,7 @@
 //! | `prerender` | 0 | `K` > 0: render frames `0..K` when opened and deliver frame `i` with the pixels of frame `i % K` (for latency measurements: the host CPU then only copies frames, as with a camera) |
 //!
 //! The frames are byte for byte those `rodtrack simulate` writes as PNG for the same scenario,
-//! frame count and seed (both build the simulation with [`crate::simulate::build`]).
+//! frame count and seed (both build the simulation with [`crate::build_simulation`]).
 //!
 //! Several sources of the same simulation (same scenario, frames, seed, quality) opened from
 //! one factory are hardware-synchronised: they share one simulation, built once, so they
@@ -26,10 +26,10 @@
 //! never skipped, so the cameras stay in step and deliver every frame id; the lag shows in the
 //! frame rate and the latency.
 
+use crate::Simulation;
 use rodtrack_core::PixelFormat;
 use rodtrack_io::source::{InputSpec, OpenOptions, SourceInfo};
 use rodtrack_io::{FrameBuffer, FrameSource, IoError, SourceError, SourceFactory, Timestamp};
-use rodtrack_sim::Simulation;
 use std::collections::HashMap;
 use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use std::time::{Duration, Instant};
@@ -104,7 +104,7 @@ impl Shared {
 type Cache = Arc<Mutex<HashMap<SimKey, Arc<Shared>>>>;
 
 /// Registers the `sim` scheme in `factory`.
-pub fn register(factory: &mut SourceFactory) {
+pub fn register_sim_source(factory: &mut SourceFactory) {
     let cache: Cache = Arc::new(Mutex::new(HashMap::new()));
     factory.register(
         "sim",
@@ -132,7 +132,7 @@ pub struct SimSource {
     /// How long the last frame took to render or copy.
     prep: Duration,
     /// Frames rendered when opened (`prerender`), with their metadata.
-    prerendered: Vec<(rodtrack_sim::FrameMeta, Vec<u8>)>,
+    prerendered: Vec<(crate::FrameMeta, Vec<u8>)>,
 }
 
 /// Most bytes `prerender` may hold per source.
@@ -204,9 +204,14 @@ impl SimSource {
             match map.get(&key) {
                 Some(s) => s.clone(),
                 None => {
-                    let sim =
-                        crate::simulate::build(&key.scenario, key.frames, key.seed, key.quality)
-                            .map_err(|e| bad(format!("{e:#}")))?;
+                    let sim = crate::build_simulation(
+                        &key.scenario,
+                        key.frames,
+                        key.seed,
+                        key.quality,
+                        "default",
+                    )
+                    .map_err(|e| bad(e.to_string()))?;
                     let s = Arc::new(Shared {
                         sim,
                         epoch: OnceLock::new(),
@@ -305,7 +310,7 @@ impl FrameSource for SimSource {
         }
         let index = self.next;
         self.next += 1;
-        let failed = |e: rodtrack_sim::SimError| IoError::SourceFailed {
+        let failed = |e: crate::SimError| IoError::SourceFailed {
             name: self.name.clone(),
             reason: format!("frame {index}: {e}"),
         };
@@ -334,7 +339,7 @@ impl FrameSource for SimSource {
             let (m, data) = &self.prerendered[index % self.prerendered.len()];
             let n = data.len().min(buf.data.len());
             buf.data[..n].copy_from_slice(&data[..n]);
-            rodtrack_sim::FrameMeta {
+            crate::FrameMeta {
                 frame_id: index as u64,
                 timestamp_s: self.sim.timestamp_s(index),
                 ..*m
@@ -384,7 +389,7 @@ mod tests {
 
     fn factory() -> SourceFactory {
         let mut f = SourceFactory::new();
-        register(&mut f);
+        register_sim_source(&mut f);
         f
     }
 
@@ -396,7 +401,7 @@ mod tests {
         let mut b = f.open("sim://exp3?camera=1&frames=3&seed=2", &o).unwrap();
         assert!(!a.info().live);
         assert_eq!(a.info().frame_count, Some(3));
-        let mut sim = crate::simulate::build("exp3", Some(3), 2, false).unwrap();
+        let mut sim = crate::build_simulation("exp3", Some(3), 2, false, "default").unwrap();
         let mut want = vec![0u8; sim.frame_bytes(1).unwrap()];
         let (mut fa, mut fb) = (FrameBuffer::new(), FrameBuffer::new());
         for i in 0..3u64 {

@@ -1,0 +1,96 @@
+//! One camera's calibration from its inputs and its reference frames, already in memory.
+
+use super::file::CameraCalibration;
+use super::inputs::CalibrationInputs;
+use super::rods::calibrate_rods;
+use crate::{CameraIntrinsics, CoreError, FrameView};
+
+/// Calibrates every rod of camera `index` from its inputs and the frames they name: `frames`
+/// holds `(frame index, view)` for each rod's reference frame and known poses. Every view must
+/// have the inputs' `image_size`; the pixel format is the views'. `default_fps` is used when
+/// the inputs give no `fps`.
+///
+/// The rods are calibrated together ([`calibrate_rods`]: their common direction feeds each
+/// rod's along-travel model); the first rod that fails gives the error, which names the rod.
+///
+/// ```no_run
+/// # fn demo(inputs: &rodtrack_core::calib::CalibrationInputs, view: rodtrack_core::FrameView<'_>)
+/// # -> Result<(), rodtrack_core::CoreError> {
+/// let frames = [(inputs.reference_frames.reference_frame, view)];
+/// let cal = rodtrack_core::calib::calibrate_camera(inputs, &frames, 0, 200.0)?;
+/// println!("{} rods calibrated", cal.rods.len());
+/// # Ok(()) }
+/// ```
+pub fn calibrate_camera(
+    inputs: &CalibrationInputs,
+    frames: &[(usize, FrameView)],
+    index: u32,
+    default_fps: f64,
+) -> Result<CameraCalibration, CoreError> {
+    let camera = || format!("{index} ({})", inputs.camera_name);
+    let field = |field: &str, reason: String| CoreError::CameraField {
+        camera: camera(),
+        field: field.to_string(),
+        reason,
+    };
+    let intrinsics = inputs
+        .opencv_model_optional
+        .as_ref()
+        .map(|m| CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs))
+        .transpose()
+        .map_err(|e| field("opencv_model_optional", e.to_string()))?;
+    let Some((_, first)) = frames.first() else {
+        return Err(field(
+            "reference_frames",
+            "no frame given to calibrate from".into(),
+        ));
+    };
+    let size = &inputs.image_size;
+    for (i, view) in frames {
+        if view.width() != size.width || view.height() != size.height {
+            return Err(field(
+                "image_size",
+                format!(
+                    "says {}x{} but frame {i} is {}x{}",
+                    size.width,
+                    size.height,
+                    view.width(),
+                    view.height()
+                ),
+            ));
+        }
+    }
+    let rods = calibrate_rods(&inputs.rods, frames, intrinsics.as_ref())
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(CameraCalibration {
+        name: inputs.camera_name.clone(),
+        index,
+        image_width: size.width,
+        image_height: size.height,
+        pixel_format: first.format().name().to_string(),
+        fps: inputs.fps.unwrap_or(default_fps),
+        opencv_model: inputs.opencv_model_optional.clone(),
+        rods,
+    })
+}
+
+/// [`calibrate_camera`] from one frame in which every rod is at its reference pose (no known
+/// poses): the simulator's and the console's case.
+pub fn calibrate_camera_from_view(
+    inputs: &CalibrationInputs,
+    view: &FrameView,
+    index: u32,
+    default_fps: f64,
+) -> Result<CameraCalibration, CoreError> {
+    let mut frames: Vec<(usize, FrameView)> = Vec::new();
+    for r in &inputs.rods {
+        if !frames.iter().any(|(i, _)| *i == r.reference.frame) {
+            frames.push((r.reference.frame, *view));
+        }
+    }
+    if frames.is_empty() {
+        frames.push((inputs.reference_frames.reference_frame, *view));
+    }
+    calibrate_camera(inputs, &frames, index, default_fps)
+}

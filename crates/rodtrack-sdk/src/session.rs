@@ -1,0 +1,567 @@
+//! A tracking session: cameras (a source and a tracker each) run through the runtime
+//! pipeline into a sink, with the temporal filter and the fusion, and hooks for the user.
+//!
+//! ```text
+//!  recordings (batch):
+//!  source 0 -> [capture 0] -> queue -> [tracker 0 + filter 0] --\
+//!                                                                 >-> [group by frame id, fusion] -> sink
+//!  source 1 -> [capture 1] -> queue -> [tracker 1 + filter 1] --/
+//!
+//!  live sources: one thread per camera reads, tracks, filters and writes its rows; the thread
+//!  that completes a frame set fuses it and writes the fused rows.
+//! ```
+//!
+//! - One processing stage per camera: its [`CameraPipeline::process`]; a frame that the source
+//!   could not deliver, or the tracker could not use, gives `bad_frame` rows for every rod of
+//!   that camera ([`Hooks::bad_frame`]) and the run goes on.
+//! - The temporal filter and the fusion: each camera's rows go through its [`CameraFilter`]
+//!   in its own thread, and the fusion of the measured rows ([`SetFusion`]) is the pipeline's
+//!   fusion stage. The rows are those of [`rodtrack_core::FrameSetFilter`] over each set.
+//! - Recordings run in [`RunMode::Batch`] (never drop, as fast as possible) with one write per
+//!   frame set, so that files are identical whatever the timing. Live sources run in
+//!   [`RunMode::Live`], each camera's thread processing the frame it read (no hand-off) and
+//!   writing its rows at once, the fused rows when the set is complete: the lowest latency
+//!   ([`pipeline_config`]).
+//! - On the end of the inputs, an error or [`Session::stop_flag`]: every pending set is
+//!   written and the sink flushed.
+
+use crate::hooks::{Hooks, NoHooks, Progress};
+use crate::SdkError;
+use rodtrack_core::calib::CalibrationFile;
+use rodtrack_core::{CameraFilter, CameraPipeline, Mode, SetFusion};
+use rodtrack_io::runtime::{
+    Handoff, LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig,
+    PipelineCounters, PipelineReport, WriteMode,
+};
+use rodtrack_io::source::{OpenOptions, SourceInfo};
+use rodtrack_io::{FrameBuffer, FrameSource, MeasurementSink, SourceError, SourceFactory};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// One camera of a session: its source and its tracker.
+pub struct SessionCamera {
+    /// `camera 0 (cam0)`, for messages.
+    pub label: String,
+    /// The opened source.
+    pub source: Box<dyn FrameSource>,
+    /// The camera's tracker.
+    pub pipe: CameraPipeline,
+}
+
+/// How a session runs.
+#[derive(Debug, Clone)]
+pub struct SessionOptions {
+    /// The algorithm (`Enhanced`, or `Paper` as the published baseline); it also tunes the
+    /// temporal filter.
+    pub mode: Mode,
+    /// The temporal filter and, with several cameras, the fusion; `false`: each camera's raw
+    /// rows.
+    pub filter: bool,
+    /// Stop after this many frames per camera.
+    pub max_frames: Option<u64>,
+    /// Pipeline settings instead of [`pipeline_config`]'s.
+    pub config: Option<PipelineConfig>,
+    /// How often [`Hooks::progress`] is called (default: 250 ms for recordings, 1 s live).
+    pub progress_period: Option<Duration>,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        SessionOptions {
+            mode: Mode::Enhanced,
+            filter: true,
+            max_frames: None,
+            config: None,
+            progress_period: None,
+        }
+    }
+}
+
+/// A tracking session; see the module documentation.
+///
+/// ```no_run
+/// use rodtrack_sdk::{read_calibration, Session, SessionOptions};
+/// let cal = read_calibration("calib.toml".as_ref())?;
+/// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+/// let (report, rows) = session.run(rodtrack_io::VecSink::default())?;
+/// println!("{} rows, {}", rows.rows.len(), report.summary());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
+pub struct Session {
+    cameras: Vec<SessionCamera>,
+    options: SessionOptions,
+    hooks: Arc<dyn Hooks>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Session {
+    /// Opens one input per camera of `cal`, in its camera order, with
+    /// [`crate::source_factory`]: a folder of images, `raw:FILE?...`, `video:FILE`,
+    /// `genicam://ID`, `sim://SCENARIO?camera=N...`.
+    pub fn open<S: AsRef<str>>(
+        cal: &CalibrationFile,
+        inputs: &[S],
+        options: SessionOptions,
+    ) -> Result<Session, SdkError> {
+        Self::open_with(&crate::source_factory(), cal, inputs, options)
+    }
+
+    /// [`Session::open`] with the sources of `factory`.
+    pub fn open_with<S: AsRef<str>>(
+        factory: &SourceFactory,
+        cal: &CalibrationFile,
+        inputs: &[S],
+        options: SessionOptions,
+    ) -> Result<Session, SdkError> {
+        if inputs.len() != cal.cameras.len() {
+            return Err(SdkError::Invalid(format!(
+                "the calibration has {} camera(s) but {} input(s) were given: give one input \
+                 per camera, in order",
+                cal.cameras.len(),
+                inputs.len()
+            )));
+        }
+        let mut cameras = Vec::new();
+        for (cam, input) in cal.cameras.iter().zip(inputs) {
+            let input = input.as_ref();
+            let label = format!("camera {} ({})", cam.index, cam.name);
+            let format = cam.format().map_err(|e| SdkError::core(&label, e))?;
+            let opts = OpenOptions {
+                format: Some(format),
+                fps: Some(cam.fps),
+                size: Some((cam.image_width, cam.image_height)),
+            };
+            let source = factory.open(input, &opts).map_err(|e| SdkError::Source {
+                context: format!("{label}: input {input}"),
+                source: e,
+            })?;
+            let pipe =
+                CameraPipeline::new(cam, options.mode).map_err(|e| SdkError::core(&label, e))?;
+            cameras.push(SessionCamera {
+                label,
+                source,
+                pipe,
+            });
+        }
+        Ok(Self::from_cameras(cameras, options))
+    }
+
+    /// A session over cameras opened by the caller.
+    pub fn from_cameras(cameras: Vec<SessionCamera>, options: SessionOptions) -> Session {
+        Session {
+            cameras,
+            options,
+            hooks: Arc::new(NoHooks),
+            stop: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    /// The hooks to call while running.
+    pub fn with_hooks(mut self, hooks: Arc<dyn Hooks>) -> Session {
+        self.hooks = hooks;
+        self
+    }
+
+    /// Uses `stop` as the stop flag (e.g. one set on Ctrl-C).
+    pub fn with_stop_flag(mut self, stop: Arc<AtomicBool>) -> Session {
+        self.stop = stop;
+        self
+    }
+
+    /// Setting this flag stops the session: every pending frame set is written, the sink
+    /// flushed and [`Session::run`] returns.
+    pub fn stop_flag(&self) -> Arc<AtomicBool> {
+        self.stop.clone()
+    }
+
+    /// The session's cameras.
+    pub fn cameras(&self) -> &[SessionCamera] {
+        &self.cameras
+    }
+
+    /// True when a source is live (a camera, the real-time simulator).
+    pub fn is_live(&self) -> bool {
+        self.cameras.iter().any(|c| c.source.info().live)
+    }
+
+    /// Runs the cameras into `sink` until the sources end or the stop flag is set; returns
+    /// the report and the sink, flushed.
+    pub fn run<S: MeasurementSink + 'static>(self, sink: S) -> Result<(RunReport, S), SdkError> {
+        run_cameras(self, sink)
+    }
+}
+
+/// The mode names accepted by [`mode_from_name`]: `enhanced`, `paper`.
+pub const MODE_NAMES: [&str; 2] = ["enhanced", "paper"];
+
+/// The algorithm named `name` ([`MODE_NAMES`]).
+pub fn mode_from_name(name: &str) -> Result<Mode, SdkError> {
+    Mode::from_name(name).ok_or_else(|| {
+        SdkError::Invalid(format!(
+            "unknown mode {name:?}: expected one of {}",
+            MODE_NAMES.join(", ")
+        ))
+    })
+}
+
+/// Time spent in one camera's tracker, per frame.
+#[derive(Default)]
+struct ProcessTimes {
+    total_ns: AtomicU64,
+    frames: AtomicU64,
+    bad: AtomicU64,
+    histogram: Mutex<LatencyHistogram>,
+}
+
+/// What a session did.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    /// The pipeline's report: frames read, processed, dropped and bad per camera, frame sets,
+    /// sink errors, latency.
+    pub pipeline: PipelineReport,
+    /// Per camera: time in the tracker per frame.
+    pub tracker: Vec<LatencySummary>,
+    /// The pipeline's settings.
+    pub config: PipelineConfig,
+    /// Camera disagreements and sync warnings of the fusion.
+    pub warnings: u64,
+}
+
+impl RunReport {
+    /// The report, the run mode and the per-camera tracker times, for printing.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "\n{} mode ({}, {}), {}",
+            match self.config.mode {
+                RunMode::Live => "live",
+                RunMode::Paced { .. } => "paced",
+                RunMode::Batch => "batch",
+            },
+            match self.config.handoff {
+                Handoff::Inline => "each camera's thread tracks its frames",
+                Handoff::Queue => "capture queue, processing thread per camera",
+            },
+            match self.config.write {
+                WriteMode::PerCamera => "rows written per camera",
+                WriteMode::Set => "rows written per frame set",
+            },
+            self.pipeline
+        );
+        for (i, p) in self.tracker.iter().enumerate() {
+            let us = |d: Duration| d.as_secs_f64() * 1e6;
+            s.push_str(&format!(
+                "\n  tracker, camera {i}: {} frames, p50 {:.0} us, p99 {:.0} us, max {:.0} us per frame",
+                p.count,
+                us(p.p50),
+                us(p.p99),
+                us(p.max)
+            ));
+        }
+        s
+    }
+
+    /// True when frames were read and every one of them was bad: nothing was measured.
+    pub fn all_bad(&self) -> bool {
+        let c = &self.pipeline.cameras;
+        c.iter().any(|c| c.frames_read > 0) && c.iter().all(|c| c.bad_frames >= c.frames_read)
+    }
+}
+
+/// A source that ends after `left` frames.
+struct Limit {
+    inner: Box<dyn FrameSource>,
+    left: u64,
+}
+
+impl FrameSource for Limit {
+    fn info(&self) -> SourceInfo {
+        let mut i = self.inner.info();
+        i.frame_count = Some(i.frame_count.map_or(self.left, |n| n.min(self.left)));
+        i
+    }
+    fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
+        if self.left == 0 {
+            return Ok(None);
+        }
+        self.left -= 1;
+        self.inner.next_frame(buf)
+    }
+    fn warnings(&self) -> Vec<String> {
+        self.inner.warnings()
+    }
+}
+
+/// How long a live camera thread polls the output lock, held by another camera's thread while
+/// it writes (a few us), before it sleeps on it: with 2 cores or more the holder runs
+/// meanwhile, and the poll saves a thread wake-up (`rodtrack bench-latency` on a 2-core
+/// machine: the lock wait's p99 falls from up to 40-60 us to under 10 us, the max from
+/// milliseconds to about 0.25 ms); on 1 core the holder cannot run while the other polls, so
+/// there is no polling.
+pub const LIVE_SPIN: Duration = Duration::from_micros(30);
+
+/// Pipeline settings for recordings (`live` false) or live sources: for live sources the
+/// lowest latency (no hand-off between threads, each camera's rows written as soon as they are
+/// measured, [`LIVE_SPIN`] on the output lock); for recordings one write per frame set (files
+/// identical whatever the timing).
+pub fn pipeline_config(live: bool) -> PipelineConfig {
+    if live {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        PipelineConfig {
+            mode: RunMode::Live,
+            handoff: Handoff::Inline,
+            write: WriteMode::PerCamera,
+            spin: if cores >= 2 {
+                LIVE_SPIN
+            } else {
+                Duration::ZERO
+            },
+            ..PipelineConfig::default()
+        }
+    } else {
+        PipelineConfig {
+            mode: RunMode::Batch,
+            // Files always deliver or end: a set waits for every camera (the timeout only
+            // guards against a source stuck in a read).
+            group_timeout: Duration::from_secs(60),
+            ..PipelineConfig::default()
+        }
+    }
+}
+
+/// The run loop of the whole project: every camera through the runtime pipeline.
+fn run_cameras<S: MeasurementSink + 'static>(
+    session: Session,
+    sink: S,
+) -> Result<(RunReport, S), SdkError> {
+    let Session {
+        cameras,
+        options,
+        hooks,
+        stop,
+    } = session;
+    let live = cameras.iter().any(|c| c.source.info().live);
+    let config = options
+        .config
+        .clone()
+        .unwrap_or_else(|| pipeline_config(live));
+    let ncam = cameras.len();
+    let max_frames = options.max_frames;
+    let total = if live {
+        None
+    } else {
+        cameras
+            .iter()
+            .map(|c| c.source.info().frame_count)
+            .min()
+            .flatten()
+            .map(|n| max_frames.map_or(n, |m| n.min(m)))
+    };
+    let uses_frames = hooks.uses_frames();
+    let mut pipeline = Pipeline::new(config);
+    let mut times = Vec::new();
+    for cam in cameras {
+        let SessionCamera {
+            label,
+            source,
+            mut pipe,
+        } = cam;
+        let cam_index = pipe.index();
+        let source: Box<dyn FrameSource> = match max_frames {
+            Some(left) => Box::new(Limit {
+                inner: source,
+                left,
+            }),
+            None => source,
+        };
+        let t = Arc::new(ProcessTimes::default());
+        times.push(t.clone());
+        let h = hooks.clone();
+        let index = pipeline.add_camera(
+            source,
+            Box::new(move |meta, frame, rows| {
+                let ts = meta.timestamp_ns.as_secs_f64();
+                let start = Instant::now();
+                let result = match frame {
+                    Ok(view) => pipe
+                        .process(&view, meta.frame_id, ts, rows)
+                        .map_err(|e| e.to_string()),
+                    Err(e) => Err(e.to_string()),
+                };
+                match result {
+                    Ok(()) => {
+                        let d = start.elapsed();
+                        t.total_ns.fetch_add(d.as_nanos() as u64, Ordering::Relaxed);
+                        t.frames.fetch_add(1, Ordering::Relaxed);
+                        if let Ok(mut hist) = t.histogram.lock() {
+                            hist.record(d);
+                        }
+                        h.measured(cam_index, meta, rows, &pipe);
+                    }
+                    Err(msg) => {
+                        // Rows of a half-measured frame go; every rod is marked instead.
+                        rows.clear();
+                        pipe.bad_frame(meta.frame_id, ts, rows);
+                        let n = t.bad.fetch_add(1, Ordering::Relaxed) + 1;
+                        h.bad_frame(&label, meta.frame_id, &msg, n);
+                    }
+                }
+            }),
+        );
+        if uses_frames {
+            let h = hooks.clone();
+            pipeline
+                .set_frame_hook(index, Box::new(move |buf| h.frame(cam_index, buf)))
+                .map_err(|e| SdkError::Io {
+                    context: "setting the frame hook".into(),
+                    source: e,
+                })?;
+        }
+        if options.filter {
+            let mut f = CameraFilter::new(options.mode);
+            pipeline
+                .set_camera_filter(
+                    index,
+                    Box::new(move |_meta, rows, out| f.process(rows, out)),
+                )
+                .map_err(|e| SdkError::Io {
+                    context: "setting the camera filter".into(),
+                    source: e,
+                })?;
+        }
+    }
+    let warnings = Arc::new(AtomicU64::new(0));
+    if options.filter && ncam > 1 {
+        let mut fusion = SetFusion::new(options.mode);
+        let (h, count) = (hooks.clone(), warnings.clone());
+        pipeline.set_fusion(Box::new(move |_set, raw, out| {
+            fusion.process(raw, out);
+            for d in fusion.disagreements() {
+                let n = count.fetch_add(1, Ordering::Relaxed) + 1;
+                h.warning(
+                    &format!(
+                        "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
+                        d.frame,
+                        d.rod,
+                        d.cameras[0],
+                        d.cameras[1],
+                        d.position_diff_mm,
+                        d.angle_diff_rad
+                    ),
+                    n,
+                );
+            }
+            for o in fusion.out_of_sync() {
+                let n = count.fetch_add(1, Ordering::Relaxed) + 1;
+                h.warning(
+                    &format!(
+                        "frame {}: camera {} out of sync by {:.2} ms",
+                        o.frame,
+                        o.camera,
+                        o.offset_s * 1e3
+                    ),
+                    n,
+                );
+            }
+        }));
+    }
+    // The caller's stop flag is forwarded to the pipeline's by the monitor thread.
+    let pipeline_stop = pipeline.stop_flag();
+    let counters = pipeline.counters();
+    let done = Arc::new(AtomicBool::new(false));
+    let period = options.progress_period.unwrap_or(if total.is_some() {
+        Duration::from_millis(250)
+    } else {
+        Duration::from_secs(1)
+    });
+    let monitor = {
+        let (done, stop, times, hooks) = (done.clone(), stop.clone(), times.clone(), hooks);
+        std::thread::Builder::new()
+            .name("rodtrack-monitor".into())
+            .spawn(move || {
+                monitor(&Monitor {
+                    done: &done,
+                    stop: &stop,
+                    pipeline_stop: &pipeline_stop,
+                    counters: &counters,
+                    times: &times,
+                    total,
+                    period,
+                    hooks: &*hooks,
+                })
+            })
+            .map_err(|e| SdkError::Runtime(format!("cannot start the monitor thread: {e}")))?
+    };
+    let result = pipeline.run_direct(sink);
+    done.store(true, Ordering::SeqCst);
+    let _ = monitor.join();
+    let (report, sink) = result.map_err(|e| SdkError::Io {
+        context: "running the pipeline".into(),
+        source: e,
+    })?;
+    let tracker = times
+        .iter()
+        .map(|t| t.histogram.lock().map(|h| h.summary()).unwrap_or_default())
+        .collect();
+    Ok((
+        RunReport {
+            pipeline: report,
+            tracker,
+            config,
+            warnings: warnings.load(Ordering::Relaxed),
+        },
+        sink,
+    ))
+}
+
+/// What the monitor thread watches.
+struct Monitor<'a> {
+    done: &'a AtomicBool,
+    stop: &'a AtomicBool,
+    pipeline_stop: &'a AtomicBool,
+    counters: &'a PipelineCounters,
+    times: &'a [Arc<ProcessTimes>],
+    total: Option<u64>,
+    period: Duration,
+    hooks: &'a dyn Hooks,
+}
+
+/// Forwards the stop flag to the pipeline and calls the progress hook until `done`.
+fn monitor(m: &Monitor<'_>) {
+    let tick = Duration::from_millis(20);
+    let started = Instant::now();
+    let mut last = Instant::now();
+    let sum = |f: &dyn Fn(&ProcessTimes) -> u64| m.times.iter().map(|t| f(t)).sum::<u64>();
+    while !m.done.load(Ordering::SeqCst) {
+        std::thread::sleep(tick);
+        if m.stop.load(Ordering::SeqCst) {
+            m.pipeline_stop.store(true, Ordering::SeqCst);
+        }
+        if last.elapsed() < m.period {
+            continue;
+        }
+        last = Instant::now();
+        let c = m.counters;
+        let progress = Progress {
+            sets: c.sets_complete.load(Ordering::Relaxed)
+                + c.sets_incomplete.load(Ordering::Relaxed),
+            total: m.total,
+            frames: c
+                .cameras
+                .iter()
+                .map(|c| c.frames_processed.load(Ordering::Relaxed))
+                .sum(),
+            measured: sum(&|t| t.frames.load(Ordering::Relaxed)),
+            tracker_time: Duration::from_nanos(sum(&|t| t.total_ns.load(Ordering::Relaxed))),
+            dropped: c
+                .cameras
+                .iter()
+                .map(|c| c.frames_dropped.load(Ordering::Relaxed))
+                .sum(),
+            bad: sum(&|t| t.bad.load(Ordering::Relaxed)),
+            cameras: m.times.len(),
+            elapsed: started.elapsed(),
+        };
+        m.hooks.progress(&progress);
+    }
+}

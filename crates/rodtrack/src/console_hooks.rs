@@ -1,0 +1,101 @@
+//! The web console fed by a session's hooks: a camera's frame, with the overlays of its rods,
+//! when the console asks for one; nothing to do on the other frames (two atomic loads).
+
+use rodtrack_console::{CameraOverlays, ConsoleHandle, RodOverlay};
+use rodtrack_core::{CameraPipeline, Measurement};
+use rodtrack_io::{FrameBuffer, FrameMeta};
+use rodtrack_sdk::SessionCamera;
+use std::sync::{Arc, Mutex};
+
+/// A live frame's overlays between a camera's tracker and its frame hook: made for the frame
+/// `frame_id` (None when no frame waits for the hook).
+#[derive(Default)]
+struct LiveOverlays {
+    frame_id: Option<u64>,
+    overlays: Vec<RodOverlay>,
+}
+
+/// One camera's part.
+struct Camera {
+    index: u32,
+    /// The overlays' constant parts (the rods' lines), made once: a live frame then only
+    /// places the markers.
+    geometry: CameraOverlays,
+    live: Mutex<LiveOverlays>,
+}
+
+/// Feeds the console from a session (see [`crate::track::CliHooks`]).
+pub struct ConsoleHooks {
+    console: Arc<ConsoleHandle>,
+    cameras: Vec<Camera>,
+}
+
+impl ConsoleHooks {
+    /// Hooks for the session's `cameras`, showing them in `console`.
+    pub fn new(console: Arc<ConsoleHandle>, cameras: &[SessionCamera]) -> ConsoleHooks {
+        ConsoleHooks {
+            console,
+            cameras: cameras
+                .iter()
+                .map(|c| Camera {
+                    index: c.pipe.index(),
+                    geometry: CameraOverlays::new(c.pipe.rods()),
+                    live: Mutex::new(LiveOverlays::default()),
+                })
+                .collect(),
+        }
+    }
+
+    fn camera(&self, index: u32) -> Option<&Camera> {
+        self.cameras.iter().find(|c| c.index == index)
+    }
+
+    /// After the tracker: the overlays, when the console asks for this camera's frame.
+    pub fn measured(
+        &self,
+        camera: u32,
+        meta: &FrameMeta,
+        _rows: &[Measurement],
+        pipe: &CameraPipeline,
+    ) {
+        if !self.console.wants_frame(camera) {
+            return;
+        }
+        let Some(cam) = self.camera(camera) else {
+            return;
+        };
+        if let Ok(mut l) = cam.live.lock() {
+            cam.geometry.fill(pipe.last_results(), &mut l.overlays);
+            l.frame_id = Some(meta.frame_id);
+        }
+    }
+
+    /// The frame itself: the console takes its buffer instead of a copy (swapped with the one
+    /// it held, which goes back to the session's pool).
+    pub fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        if !self.console.wants_frame(camera) {
+            return;
+        }
+        let Some(cam) = self.camera(camera) else {
+            return;
+        };
+        let Ok(mut l) = cam.live.lock() else {
+            return;
+        };
+        if l.frame_id.take() != Some(buf.meta.frame_id) {
+            return;
+        }
+        let m = buf.meta;
+        self.console.publish_frame_buffer(
+            camera,
+            &mut buf.data,
+            m.width,
+            m.height,
+            m.stride,
+            m.format,
+            m.frame_id,
+            m.timestamp_ns.as_secs_f64(),
+            &l.overlays,
+        );
+    }
+}
