@@ -10,6 +10,8 @@
 //! | `seed` | 1 | scene variations and sensor noise, as `rodtrack simulate --seed` |
 //! | `realtime` | 0 | 1: release frame `k` at `k / fps` after the first trigger, report `live` |
 //! | `quality` | 0 | 1: quality rendering, as `rodtrack simulate --quality` |
+//! | `every` | 1 | `K` > 1: deliver frames `0, K, 2K, ...` only (with their ids and timestamps), as a camera at 1/K of the frame rate |
+//! | `loop` | 0 | 1: endless: frame `k` shows the scenario's frame `k % frames` (frame ids and timestamps keep counting) |
 //! | `prerender` | 0 | `K` > 0: render frames `0..K` when opened and deliver frame `i` with the pixels of frame `i % K` (for latency measurements: the host CPU then only copies frames, as with a camera) |
 //!
 //! The frames are byte for byte those `rodtrack simulate` writes as PNG for the same scenario,
@@ -127,6 +129,10 @@ pub struct SimSource {
     format: PixelFormat,
     fps: f64,
     realtime: bool,
+    /// Deliver every `every`-th frame of the timeline.
+    every: usize,
+    /// Endless: the scenario's frames over again.
+    looping: bool,
     /// Slot in `shared.delivered` (real time only).
     slot: Option<usize>,
     /// How long the last frame took to render or copy.
@@ -180,6 +186,8 @@ impl SimSource {
             "realtime",
             "quality",
             "prerender",
+            "every",
+            "loop",
         ])?;
         let bad = |reason: String| IoError::BadInput {
             input: spec.input.clone(),
@@ -197,6 +205,11 @@ impl SimSource {
             quality: flag(spec, "quality")?,
         };
         let realtime = flag(spec, "realtime")?;
+        let looping = flag(spec, "loop")?;
+        let every: usize = spec.param_parse("every")?.unwrap_or(1);
+        if every == 0 {
+            return Err(bad("parameter `every` must be at least 1".into()));
+        }
         let shared = {
             let mut map = cache
                 .lock()
@@ -284,7 +297,14 @@ impl SimSource {
             format,
             fps,
             realtime,
+            every,
+            looping,
         })
+    }
+
+    /// Frames delivered in all (`None`: endless).
+    fn delivered_count(&self) -> Option<usize> {
+        (!self.looping).then(|| self.frames.div_ceil(self.every))
     }
 }
 
@@ -296,19 +316,22 @@ impl FrameSource for SimSource {
             height: self.height,
             format: self.format,
             fps: Some(self.fps),
-            frame_count: Some(self.frames as u64),
+            frame_count: self.delivered_count().map(|n| n as u64),
             live: self.realtime,
         }
     }
 
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
-        if self.next >= self.frames {
+        if self.delivered_count().is_some_and(|n| self.next >= n) {
             if let Some(slot) = self.slot {
                 self.shared.delivered(slot, u64::MAX);
             }
             return Ok(None);
         }
-        let index = self.next;
+        // `tick`: the frame's place on the (endless) timeline; `index`: the scenario's frame
+        // it shows.
+        let tick = self.next * self.every;
+        let index = tick % self.frames.max(1);
         self.next += 1;
         let failed = |e: crate::SimError| IoError::SourceFailed {
             name: self.name.clone(),
@@ -318,12 +341,12 @@ impl FrameSource for SimSource {
         // just before, so that the preparation does not compete for the CPU with the
         // tracking of the previous frame.
         let due = self.realtime.then(|| {
-            self.shared.gate(index as u64);
+            self.shared.gate(self.next as u64 - 1);
             let epoch = *self
                 .shared
                 .epoch
                 .get_or_init(|| Instant::now() + Duration::from_millis(50));
-            let due = epoch + Duration::from_secs_f64(index as f64 / self.fps);
+            let due = epoch + Duration::from_secs_f64(tick as f64 / self.fps);
             let period = Duration::from_secs_f64(1.0 / self.fps);
             let lead = (2 * self.prep + Duration::from_micros(200)).min(period);
             sleep_until(due.checked_sub(lead).unwrap_or(due));
@@ -360,8 +383,14 @@ impl FrameSource for SimSource {
             });
         }
         buf.reshape(meta.width, meta.height, meta.stride, meta.format);
-        buf.meta.frame_id = meta.frame_id;
-        buf.meta.timestamp_ns = Timestamp::from_secs_f64(meta.timestamp_s);
+        if tick == index {
+            buf.meta.frame_id = meta.frame_id;
+            buf.meta.timestamp_ns = Timestamp::from_secs_f64(meta.timestamp_s);
+        } else {
+            // A loop's later rounds: the timeline goes on.
+            buf.meta.frame_id = tick as u64;
+            buf.meta.timestamp_ns = Timestamp::from_frame(tick as u64, self.fps);
+        }
         self.prep = prep_start.elapsed();
         if let Some(due) = due {
             // Released at its trigger time, as a camera delivers it (exposure and readout are

@@ -46,6 +46,25 @@ impl ConsoleHooks {
         }
     }
 
+    /// Shows rows in the console's plots.
+    pub fn publish_rows(&self, rows: &[Measurement]) {
+        self.console.publish_rows(rows);
+    }
+
+    /// Shows a session's counters in the console's status line.
+    pub fn publish_progress(&self, p: &rodtrack_sdk::Progress) {
+        let secs = p.elapsed.as_secs_f64().max(1e-9);
+        self.console
+            .publish_stats(&rodtrack_console::PipelineStats {
+                frames: p.sets,
+                fps: p.sets as f64 / secs,
+                frame_time_us: p.tracker_time.as_secs_f64() * 1e6 / p.measured.max(1) as f64
+                    * p.cameras.max(1) as f64,
+                dropped_frames: p.dropped,
+                bad_frames: p.bad,
+            });
+    }
+
     fn camera(&self, index: u32) -> Option<&Camera> {
         self.cameras.iter().find(|c| c.index == index)
     }

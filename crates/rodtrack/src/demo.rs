@@ -2,10 +2,9 @@
 
 use crate::score::{print_table, score};
 use anyhow::Result;
-use rodtrack_core::{
-    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
-};
+use rodtrack_core::{CameraId, Measurement, Status};
 use std::io::{IsTerminal, Write};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments of `rodtrack demo`.
@@ -52,209 +51,139 @@ pub fn run(args: Args) -> Result<()> {
         );
         cals.push(cal);
     }
-    // 2. Track every frame in both modes: rodtrack's and the paper's, on the same frames.
-    let mut pipes: Vec<CameraPipeline> = cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Enhanced))
-        .collect::<Result<_, _>>()?;
-    // The console's overlays: the rods' constant parts, once per camera.
-    let geometry: Vec<rodtrack_console::CameraOverlays> = pipes
-        .iter()
-        .map(|p| rodtrack_console::CameraOverlays::new(p.rods()))
-        .collect();
-    let mut paper: Vec<Option<CameraPipeline>> = cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Paper).ok())
-        .collect();
-    let mut bufs: Vec<Vec<u8>> = (0..ncam)
-        .map(|c| sim.frame_bytes(c).map(|b| vec![0u8; b]))
-        .collect::<Result<_, _>>()?;
-    let mut rows: Vec<Measurement> = Vec::new();
-    let mut filtered: Vec<Measurement> = Vec::new();
-    let mut set_filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
-    let mut all_filtered: Vec<(Measurement, Option<bool>)> = Vec::new();
-    let mut all_fused: Vec<(Measurement, Option<bool>)> = Vec::new();
-    let mut all: Vec<(Measurement, Option<bool>)> = Vec::new();
-    let mut all_paper: Vec<(Measurement, Option<bool>)> = Vec::new();
-    let mut truth: Vec<(Measurement, Option<bool>)> = Vec::new();
-    let mut proc_us: Vec<f64> = Vec::new();
-    let mut render_s = 0.0;
-    // Per-row errors for analysis, when asked for (RODTRACK_ERRORS_CSV=path).
-    let mut errors_csv = match std::env::var_os("RODTRACK_ERRORS_CSV") {
-        Some(p) => {
-            let mut f = std::io::BufWriter::new(std::fs::File::create(&p)?);
-            writeln!(f, "frame,camera,rod,true_position_mm,true_angle_rad,position_error_mm,angle_error_rad,theta_steps")?;
-            Some(f)
-        }
-        None => None,
-    };
+    // 2. Track every frame in both modes, rodtrack's and the paper's, on the same frames: the
+    // simulated cameras through a session, the paper's algorithm in its frame hook.
     let console = match args.console {
         Some(addr) => {
             let c = rodtrack_console::Console::start(addr, None)?;
             println!("web console: {}", c.url());
-            Some(c)
+            Some(Arc::new(c))
         }
         None => None,
     };
-    let mut overlays = Vec::new();
     let tty = std::io::stdout().is_terminal() && console.is_none();
-    let mut last_draw = Instant::now();
-    let t_loop = Instant::now();
     let n = sim.frame_count();
+    let t_loop = Instant::now();
+    let mut last_draw: Option<Instant> = None;
+    let on_rows: crate::sim_run::RowsCallback = Box::new(move |rows, progress| {
+        let Some(last) = rows.iter().map(|m| m.frame).max() else {
+            return;
+        };
+        let f = last as usize;
+        let fused = rows.iter().any(|m| m.camera == CameraId::Fused);
+        // One table per frame set: on the fused rows, or on the camera rows without fusion.
+        if (ncam > 1) != fused {
+            return;
+        }
+        if last_draw.is_some_and(|t| t.elapsed().as_millis() < 100) && f + 1 != n {
+            return;
+        }
+        last_draw = Some(Instant::now());
+        let shown: Vec<Measurement> = rows
+            .iter()
+            .filter(|m| ncam == 1 || m.camera == CameraId::Fused)
+            .copied()
+            .collect();
+        let us = progress.tracker_time.as_secs_f64() * 1e6 / progress.measured.max(1) as f64;
+        draw_table(&shown, f, n, us, t_loop.elapsed().as_secs_f64(), tty);
+    });
+    let (rows, report) = crate::sim_run::run_sim(
+        &cals,
+        crate::sim_run::SimRun {
+            scenario: &args.scenario,
+            frames: Some(args.frames),
+            seed: args.seed,
+            every: 1,
+            paper: true,
+            console: console.clone(),
+            on_rows: Some(on_rows),
+        },
+    )?;
+    let loop_s = t_loop.elapsed().as_secs_f64();
+    let mut truth: Vec<(Measurement, Option<bool>)> = Vec::new();
     for f in 0..n {
-        rows.clear();
         for c in 0..ncam {
-            let t0 = Instant::now();
-            let meta = sim.render(f, c, &mut bufs[c])?;
-            render_s += t0.elapsed().as_secs_f64();
-            let view = FrameView::new(&bufs[c], meta.width, meta.height, meta.stride, meta.format)?;
-            let t1 = Instant::now();
-            pipes[c].process(&view, meta.frame_id, meta.timestamp_s, &mut rows)?;
-            proc_us.push(t1.elapsed().as_secs_f64() * 1e6);
-            if std::env::var_os("RODTRACK_DEBUG").is_some() && f % 50 == 0 {
-                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
-                    eprintln!(
-                        "frame {f} cam {c} rod {}: {} {} ncc {:.2} amp {:.2} edge std {:.3} step {} theta {:.2}",
-                        tr.rod(), r.status, r.reason, r.ncc, r.amp_ratio, r.edge_std_mm, r.gray_step, r.theta_steps
-                    );
-                }
-            }
-            if let Some(p) = paper[c].as_mut() {
-                let mut prow = Vec::new();
-                p.process(&view, meta.frame_id, meta.timestamp_s, &mut prow)?;
-                all_paper.extend(prow.into_iter().map(|m| (m, None)));
-            }
-            let tr_rows = sim.truth(f, c)?;
-            if let Some(w) = errors_csv.as_mut() {
-                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
-                    let Some(t) = tr_rows.iter().find(|t| t.m.rod == tr.rod()) else {
-                        continue;
-                    };
-                    if r.status == Status::Ok && t.visible {
-                        writeln!(
-                            w,
-                            "{f},{c},{},{:.4},{:.5},{:.4},{:.5},{:.3}",
-                            tr.rod(),
-                            t.m.position_mm,
-                            t.m.angle_rad,
-                            r.position_mm - t.m.position_mm,
-                            crate::score::wrap_angle(r.angle_rad - t.m.angle_rad),
-                            r.theta_steps
-                        )?;
-                    }
-                }
-            }
-            if std::env::var_os("RODTRACK_DEBUG").is_some() {
-                for (tr, r) in pipes[c].rods().iter().zip(pipes[c].last_results()) {
-                    let Some(t) = tr_rows.iter().find(|t| t.m.rod == tr.rod()) else {
-                        continue;
-                    };
-                    let e = crate::score::wrap_angle(r.angle_rad - t.m.angle_rad);
-                    if r.status == Status::Ok && e.abs() > 0.1 {
-                        eprintln!(
-                            "gross: frame {f} cam {c} rod {} err {e:.3} truth {:.3} w {:.1} rad/s step {} theta {:.2} amp {:.2} ncc {:.2} visible {}",
-                            tr.rod(), t.m.angle_rad, t.m.angular_velocity_rad_s, r.gray_step, r.theta_steps, r.amp_ratio, r.ncc, t.visible
-                        );
-                    }
-                }
-            }
-            for t in tr_rows {
+            for t in sim.truth(f, c)? {
                 truth.push((t.m, Some(t.visible)));
             }
-            // Last use of this frame: the console may take its buffer (a swap, no copy; the
-            // buffer given back is rendered into next time).
-            if let Some(con) = console.as_ref() {
-                if con.wants_frame(c as u32) {
-                    geometry[c].fill(pipes[c].last_results(), &mut overlays);
-                    con.publish_frame_buffer(
-                        c as u32,
-                        &mut bufs[c],
-                        meta.width,
-                        meta.height,
-                        meta.stride,
-                        meta.format,
-                        meta.frame_id,
-                        meta.timestamp_s,
-                        &overlays,
-                    );
-                }
-            }
-        }
-        all.extend(rows.iter().map(|m| (*m, None)));
-        filtered.clear();
-        set_filter.process(&rows, &mut filtered);
-        if let Some(con) = console.as_ref() {
-            con.publish_rows(&filtered);
-            if f % 50 == 0 {
-                let mut recent = proc_us[proc_us.len().saturating_sub(100)..].to_vec();
-                con.publish_stats(&rodtrack_console::PipelineStats {
-                    frames: f as u64 + 1,
-                    fps: (f + 1) as f64 / t_loop.elapsed().as_secs_f64().max(1e-9),
-                    frame_time_us: median(&mut recent) * ncam as f64,
-                    dropped_frames: 0,
-                    bad_frames: 0,
-                });
-            }
-        }
-        for m in &filtered {
-            if m.camera == CameraId::Fused {
-                all_fused.push((*m, None));
-            } else {
-                all_filtered.push((*m, None));
-            }
-        }
-        if last_draw.elapsed().as_millis() >= 100 || f + 1 == n {
-            last_draw = Instant::now();
-            let shown: Vec<Measurement> = if ncam > 1 {
-                filtered
-                    .iter()
-                    .filter(|m| m.camera == CameraId::Fused)
-                    .copied()
-                    .collect()
-            } else {
-                filtered.clone()
-            };
-            draw_table(&shown, f, n, &proc_us, t_loop.elapsed().as_secs_f64(), tty);
         }
     }
+    let with_none = |v: &[Measurement]| -> Vec<(Measurement, Option<bool>)> {
+        v.iter().map(|m| (*m, None)).collect()
+    };
+    if let Some(p) = std::env::var_os("RODTRACK_ERRORS_CSV") {
+        write_errors(std::path::Path::new(&p), &truth, &rows.raw)?;
+    }
+    let p50_us = report
+        .tracker
+        .iter()
+        .map(|t| t.p50.as_secs_f64() * 1e6)
+        .fold(0.0, f64::max);
     println!();
     println!(
-        "rendered {} frames x {ncam} cameras in {:.1} s (simulator); tracking: median {:.1} us per camera frame (all rods)",
-        n,
-        render_s,
-        median(&mut proc_us)
+        "simulated and tracked {n} frames x {ncam} cameras in {loop_s:.1} s (the simulator renders on the CPU); tracking: median {p50_us:.1} us per camera frame (all rods)"
     );
     println!("\naccuracy against ground truth, rodtrack (enhanced mode), each camera's raw measurements:");
-    print_table(&score(&truth, &all));
+    print_table(&score(&truth, &with_none(&rows.raw)));
     println!("\nrodtrack, each camera through the temporal filter:");
-    print_table(&score(&truth, &all_filtered));
+    print_table(&score(&truth, &with_none(&rows.filtered)));
     if ncam > 1 {
         println!("\nrodtrack, cameras fused and filtered (one row per rod):");
-        print_table(&score(&truth, &all_fused));
+        print_table(&score(&truth, &with_none(&rows.fused)));
     }
     println!("\nthe paper's algorithm on the same frames (paper mode):");
-    print_table(&score(&truth, &all_paper));
+    print_table(&score(&truth, &with_none(&rows.paper)));
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
     if let Some(con) = console {
         println!("web console still at {}: press Ctrl-C to quit", con.url());
-        con.wait();
+        // The session and its hooks have ended: this is the last holder of the console.
+        match Arc::try_unwrap(con) {
+            Ok(c) => c.wait(),
+            Err(_) => anyhow::bail!("the web console is still in use"),
+        }
     }
     Ok(())
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
+/// Writes each `ok` row's error against the truth (`RODTRACK_ERRORS_CSV=path`, for analysis).
+fn write_errors(
+    path: &std::path::Path,
+    truth: &[(Measurement, Option<bool>)],
+    raw: &[Measurement],
+) -> Result<()> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(
+        w,
+        "frame,camera,rod,true_position_mm,true_angle_rad,position_error_mm,angle_error_rad"
+    )?;
+    let index: std::collections::HashMap<(u64, CameraId, u32), &Measurement> = truth
+        .iter()
+        .filter(|(_, v)| *v == Some(true))
+        .map(|(m, _)| ((m.frame, m.camera, m.rod), m))
+        .collect();
+    for r in raw.iter().filter(|r| r.status == Status::Ok) {
+        if let Some(t) = index.get(&(r.frame, r.camera, r.rod)) {
+            writeln!(
+                w,
+                "{},{},{},{:.4},{:.5},{:.4},{:.5}",
+                r.frame,
+                r.camera,
+                r.rod,
+                t.position_mm,
+                t.angle_rad,
+                r.position_mm - t.position_mm,
+                crate::score::wrap_angle(r.angle_rad - t.angle_rad)
+            )?;
+        }
     }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
+    Ok(())
 }
 
 fn draw_table(
     rows: &[Measurement],
     f: usize,
     n: usize,
-    proc_us: &[f64],
+    us_per_frame: f64,
     elapsed_s: f64,
     tty: bool,
 ) {
@@ -262,14 +191,11 @@ fn draw_table(
     if tty {
         out.push_str("\x1b[H\x1b[2J");
     }
-    let recent = &proc_us[proc_us.len().saturating_sub(200)..];
-    let mut r: Vec<f64> = recent.to_vec();
-    let med = median(&mut r);
     out.push_str(&format!(
-        "frame {:>5}/{n}   {:>6.1} frame sets/s   {:>6.1} us per camera frame (median of last 200)\n",
+        "frame {:>5}/{n}   {:>6.1} frame sets/s   {:>6.1} us per camera frame (mean)\n",
         f + 1,
         (f + 1) as f64 / elapsed_s.max(1e-9),
-        med
+        us_per_frame
     ));
     out.push_str(" cam rod  position_mm  angle_rad  turns  quality  status\n");
     for m in rows {

@@ -10,6 +10,7 @@ mod evaluate;
 mod marker;
 mod plots;
 mod score;
+mod sim_run;
 mod simulate;
 mod track;
 

@@ -1,0 +1,212 @@
+//! The built-in simulator's cameras through an SDK [`Session`], as `demo` and `evaluate` run
+//! them: the rows sorted by kind (each camera's raw rows, filtered rows, fused rows), and the
+//! paper's algorithm on the same frames alongside when asked.
+
+use crate::console_hooks::ConsoleHooks;
+use anyhow::{Context, Result};
+use rodtrack_console::ConsoleHandle;
+use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode};
+use rodtrack_io::source::OpenOptions;
+use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
+use rodtrack_sdk::{Hooks, Progress, RunReport, Session, SessionCamera, SessionOptions};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// What to run.
+pub struct SimRun<'a> {
+    /// Scenario name.
+    pub scenario: &'a str,
+    /// Frames of the scenario (default: its length).
+    pub frames: Option<usize>,
+    /// Seed of the simulation.
+    pub seed: u64,
+    /// Every `every`-th frame only.
+    pub every: usize,
+    /// Also the paper's algorithm on the same frames.
+    pub paper: bool,
+    /// The console to show the frames and rows in.
+    pub console: Option<Arc<ConsoleHandle>>,
+    /// Called with every write of filtered rows (each camera's, then the fused ones) and the
+    /// latest progress.
+    pub on_rows: Option<RowsCallback>,
+}
+
+/// See [`SimRun::on_rows`].
+pub type RowsCallback = Box<dyn FnMut(&[Measurement], &Progress) + Send>;
+
+/// The rows of a run, by kind.
+#[derive(Debug, Default)]
+pub struct SimRows {
+    /// Each camera's raw rows (enhanced mode).
+    pub raw: Vec<Measurement>,
+    /// Each camera's rows through its temporal filter.
+    pub filtered: Vec<Measurement>,
+    /// The fused rows (several cameras).
+    pub fused: Vec<Measurement>,
+    /// The paper's algorithm's raw rows.
+    pub paper: Vec<Measurement>,
+    /// Time in the paper's tracker per camera frame, us.
+    pub paper_us: Vec<f64>,
+}
+
+/// The paper's tracker of each camera, run by the frame hook.
+struct Hooked {
+    rows: Mutex<SimRows>,
+    paper: Vec<Mutex<Option<CameraPipeline>>>,
+    console: Option<ConsoleHooks>,
+    progress: Mutex<Progress>,
+}
+
+impl Hooks for Hooked {
+    fn measured(&self, camera: u32, meta: &FrameMeta, rows: &[Measurement], pipe: &CameraPipeline) {
+        if let Ok(mut r) = self.rows.lock() {
+            r.raw.extend_from_slice(rows);
+        }
+        if let Some(c) = &self.console {
+            c.measured(camera, meta, rows, pipe);
+        }
+    }
+    fn uses_frames(&self) -> bool {
+        self.console.is_some()
+            || self
+                .paper
+                .iter()
+                .any(|p| p.lock().is_ok_and(|p| p.is_some()))
+    }
+    fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        let paper = self.paper.get(camera as usize).and_then(|p| p.lock().ok());
+        if let (Some(mut paper), Ok(view)) = (paper, buf.view()) {
+            if let Some(p) = paper.as_mut() {
+                let mut rows = Vec::new();
+                let t = Instant::now();
+                let ts = buf.meta.timestamp_ns.as_secs_f64();
+                if p.process(&view, buf.meta.frame_id, ts, &mut rows).is_ok() {
+                    let us = t.elapsed().as_secs_f64() * 1e6;
+                    if let Ok(mut r) = self.rows.lock() {
+                        r.paper.extend_from_slice(&rows);
+                        r.paper_us.push(us);
+                    }
+                }
+            }
+        }
+        // Last: the console may take the frame's buffer.
+        if let Some(c) = &self.console {
+            c.frame(camera, buf);
+        }
+    }
+    fn progress(&self, p: &Progress) {
+        if let Some(c) = &self.console {
+            c.publish_progress(p);
+        }
+        if let Ok(mut last) = self.progress.lock() {
+            *last = p.clone();
+        }
+    }
+}
+
+/// The session's sink: the filtered and fused rows kept, shown and passed on.
+struct Collect {
+    hooked: Arc<Hooked>,
+    on_rows: Option<RowsCallback>,
+}
+
+impl MeasurementSink for Collect {
+    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        if let Ok(mut r) = self.hooked.rows.lock() {
+            for m in rows {
+                if m.camera == CameraId::Fused {
+                    r.fused.push(*m);
+                } else {
+                    r.filtered.push(*m);
+                }
+            }
+        }
+        if let Some(c) = &self.hooked.console {
+            c.publish_rows(rows);
+        }
+        if let Some(f) = self.on_rows.as_mut() {
+            let p = self
+                .hooked
+                .progress
+                .lock()
+                .map(|p| p.clone())
+                .unwrap_or_default();
+            f(rows, &p);
+        }
+        Ok(())
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
+
+/// Runs the simulated cameras calibrated as `cals` through a session (enhanced mode, the
+/// temporal filter and the fusion); returns the rows and the session's report.
+pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, RunReport)> {
+    let factory = rodtrack_sdk::source_factory();
+    let mut cameras = Vec::new();
+    for cal in cals {
+        let mut input = format!(
+            "sim://{}?camera={}&seed={}&every={}",
+            run.scenario,
+            cal.index,
+            run.seed,
+            run.every.max(1)
+        );
+        if let Some(n) = run.frames {
+            input.push_str(&format!("&frames={n}"));
+        }
+        let opts = OpenOptions {
+            format: Some(cal.format()?),
+            fps: Some(cal.fps),
+            size: Some((cal.image_width, cal.image_height)),
+        };
+        let source = factory
+            .open(&input, &opts)
+            .with_context(|| format!("opening {input}"))?;
+        cameras.push(SessionCamera {
+            label: format!("camera {} ({})", cal.index, cal.name),
+            source,
+            pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
+        });
+    }
+    let hooked = Arc::new(Hooked {
+        rows: Mutex::new(SimRows::default()),
+        // The paper's mode needs its per-rod parameters; a camera without them gives no rows.
+        paper: cals
+            .iter()
+            .map(|c| {
+                Mutex::new(
+                    run.paper
+                        .then(|| CameraPipeline::new(c, Mode::Paper).ok())
+                        .flatten(),
+                )
+            })
+            .collect(),
+        console: run.console.clone().map(|c| ConsoleHooks::new(c, &cameras)),
+        progress: Mutex::new(Progress::default()),
+    });
+    let options = SessionOptions {
+        progress_period: Some(Duration::from_millis(100)),
+        ..SessionOptions::default()
+    };
+    let sink = Collect {
+        hooked: hooked.clone(),
+        on_rows: run.on_rows,
+    };
+    let (report, sink) = Session::from_cameras(cameras, options)
+        .with_hooks(hooked.clone())
+        .run(sink)?;
+    drop(sink);
+    let rows = match Arc::try_unwrap(hooked) {
+        Ok(h) => h.rows.into_inner().unwrap_or_default(),
+        Err(h) => std::mem::take(
+            &mut *h
+                .rows
+                .lock()
+                .map_err(|_| anyhow::anyhow!("rows lock poisoned"))?,
+        ),
+    };
+    Ok((rows, report))
+}
