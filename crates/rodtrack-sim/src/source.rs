@@ -116,6 +116,15 @@ pub fn register_sim_source(factory: &mut SourceFactory) {
     );
 }
 
+/// How a source delivers its frames.
+#[derive(Debug, Clone, Copy)]
+struct How {
+    realtime: bool,
+    looping: bool,
+    every: usize,
+    prerender: usize,
+}
+
 /// One simulated camera; see the module documentation.
 pub struct SimSource {
     name: String,
@@ -236,6 +245,50 @@ impl SimSource {
                 }
             }
         };
+        let how = How {
+            realtime,
+            looping,
+            every,
+            prerender: spec.param_parse("prerender")?.unwrap_or(0),
+        };
+        Self::on_shared(shared, camera, opts, how, &spec.input)
+    }
+
+    /// One source per camera of `sim` (a simulation already built), sharing it as the sources
+    /// of one `sim://` URI do: every `every`-th frame, not in real time.
+    pub fn for_simulation(sim: &Simulation, every: usize) -> Result<Vec<SimSource>, IoError> {
+        let shared = Arc::new(Shared {
+            sim: sim.clone(),
+            epoch: OnceLock::new(),
+            delivered: Mutex::new(Vec::new()),
+            progress: Condvar::new(),
+        });
+        let how = How {
+            realtime: false,
+            looping: false,
+            every: every.max(1),
+            prerender: 0,
+        };
+        (0..sim.cameras().len())
+            .map(|c| {
+                let name = format!("simulated camera {c}");
+                Self::on_shared(shared.clone(), c, &OpenOptions::default(), how, &name)
+            })
+            .collect()
+    }
+
+    /// Camera `camera` of the shared simulation.
+    fn on_shared(
+        shared: Arc<Shared>,
+        camera: usize,
+        opts: &OpenOptions,
+        how: How,
+        name: &str,
+    ) -> Result<SimSource, IoError> {
+        let bad = |reason: String| IoError::BadInput {
+            input: name.to_string(),
+            reason,
+        };
         let count = shared.sim.cameras().len();
         let cam = shared.sim.cameras().get(camera).ok_or_else(|| {
             bad(format!(
@@ -263,10 +316,7 @@ impl SimSource {
         let fps = shared.sim.scenario().fps;
         let bytes = cam.frame_bytes();
         let mut sim = shared.sim.clone();
-        let prerender: usize = spec
-            .param_parse("prerender")?
-            .unwrap_or(0)
-            .min(sim.frame_count());
+        let prerender = how.prerender.min(sim.frame_count());
         if prerender.saturating_mul(bytes) > MAX_PRERENDER_BYTES {
             return Err(bad(format!(
                 "parameter `prerender`: {prerender} frames of {bytes} bytes exceed {} MiB",
@@ -281,12 +331,12 @@ impl SimSource {
                 .map_err(|e| bad(format!("rendering frame {i}: {e}")))?;
             prerendered.push((meta, data));
         }
-        let slot = realtime.then(|| shared.join());
+        let slot = how.realtime.then(|| shared.join());
         Ok(SimSource {
             slot,
             prep: Duration::ZERO,
             prerendered,
-            name: spec.input.clone(),
+            name: name.to_string(),
             frames: sim.frame_count(),
             sim,
             shared,
@@ -296,9 +346,9 @@ impl SimSource {
             height,
             format,
             fps,
-            realtime,
-            every,
-            looping,
+            realtime: how.realtime,
+            every: how.every,
+            looping: how.looping,
         })
     }
 

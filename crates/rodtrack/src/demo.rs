@@ -90,9 +90,7 @@ pub fn run(args: Args) -> Result<()> {
     let (rows, report) = crate::sim_run::run_sim(
         &cals,
         crate::sim_run::SimRun {
-            scenario: &args.scenario,
-            frames: Some(args.frames),
-            seed: args.seed,
+            sim: &sim,
             every: 1,
             paper: true,
             console: console.clone(),

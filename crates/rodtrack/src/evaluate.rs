@@ -8,9 +8,7 @@ use crate::score::{score, wrap_angle, Stats};
 use anyhow::{anyhow, bail, Context, Result};
 use plotters::style::RGBColor;
 use rodtrack_core::calib::CameraCalibration;
-use rodtrack_core::{
-    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, Status,
-};
+use rodtrack_core::{CameraId, FrameView, Measurement, Status};
 use rodtrack_sim::SCENARIO_NAMES;
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;
@@ -301,7 +299,7 @@ fn run_scenario(
     plan: &Plan,
     seed: u64,
     keep_rows: bool,
-    progress: &Progress,
+    progress: &std::sync::Arc<Progress>,
     cache: &CalibCache,
 ) -> Result<ScenarioResult> {
     let t0 = Instant::now();
@@ -332,57 +330,61 @@ fn run_scenario(
     let indices: Vec<usize> = (0..n).step_by(plan.stride.max(1)).collect();
     progress.update(&plan.name, 0, indices.len(), SETUP_UNITS);
 
-    let mut enhanced: Vec<CameraPipeline> = cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Enhanced))
-        .collect::<Result<_, _>>()?;
-    // The paper's mode needs its per-rod parameters; a camera without them gives no rows.
-    let mut paper: Vec<Option<CameraPipeline>> = cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Paper).ok())
-        .collect();
-    let mut set_filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
-    let mut bufs: Vec<Vec<u8>> = (0..ncam)
-        .map(|c| sim.frame_bytes(c).map(|b| vec![0u8; b]))
-        .collect::<Result<_, _>>()?;
-    let mut rows = ScenarioRows::default();
-    let mut raw: Vec<Measurement> = Vec::new();
-    let mut prow: Vec<Measurement> = Vec::new();
-    let mut filtered: Vec<Measurement> = Vec::new();
-    let (mut enh_us, mut pap_us) = (Vec::new(), Vec::new());
+    // The simulated cameras through a session (enhanced mode, filter, fusion), the paper's
+    // algorithm on the same frames alongside.
     let t1 = Instant::now();
+    let total = indices.len();
+    let name = plan.name.clone();
+    let stride = plan.stride.max(1);
+    let shared = progress.clone();
     let mut reported = 0;
-    for (k, &f) in indices.iter().enumerate() {
-        raw.clear();
+    let on_rows: crate::sim_run::RowsCallback = Box::new(move |written, _| {
+        // Frame sets written so far, from the fused (or, with one camera, the camera) rows.
+        let Some(last) = written.iter().map(|m| m.frame).max() else {
+            return;
+        };
+        let fused = written.iter().any(|m| m.camera == CameraId::Fused);
+        if (ncam > 1) != fused {
+            return;
+        }
+        let k = last as usize / stride + 1;
+        if k >= reported + 20 || k == total {
+            shared.update(&name, k, total, k.saturating_sub(reported));
+            reported = k;
+        }
+    });
+    let (got, report) = crate::sim_run::run_sim(
+        &cals,
+        crate::sim_run::SimRun {
+            sim: &sim,
+            every: plan.stride.max(1),
+            paper: true,
+            console: None,
+            on_rows: Some(on_rows),
+        },
+    )?;
+    let mut rows = ScenarioRows::default();
+    for &f in &indices {
         for c in 0..ncam {
-            let meta = sim.render(f, c, &mut bufs[c])?;
-            let view = FrameView::new(&bufs[c], meta.width, meta.height, meta.stride, meta.format)?;
-            let ta = Instant::now();
-            enhanced[c].process(&view, meta.frame_id, meta.timestamp_s, &mut raw)?;
-            enh_us.push(ta.elapsed().as_secs_f64() * 1e6);
-            if let Some(p) = paper[c].as_mut() {
-                prow.clear();
-                let tb = Instant::now();
-                p.process(&view, meta.frame_id, meta.timestamp_s, &mut prow)?;
-                pap_us.push(tb.elapsed().as_secs_f64() * 1e6);
-                rows.modes[0].extend(prow.iter().map(|m| (*m, None)));
-            }
             for t in sim.truth(f, c)? {
                 rows.truth.push((t.m, Some(t.visible)));
             }
         }
-        rows.modes[1].extend(raw.iter().map(|m| (*m, None)));
-        filtered.clear();
-        set_filter.process(&raw, &mut filtered);
-        for m in &filtered {
-            let i = if m.camera == CameraId::Fused { 3 } else { 2 };
-            rows.modes[i].push((*m, None));
-        }
-        if (k + 1) % 20 == 0 || k + 1 == indices.len() {
-            progress.update(&plan.name, k + 1, indices.len(), k + 1 - reported);
-            reported = k + 1;
-        }
     }
+    let with_none = |v: &[Measurement]| -> Rows { v.iter().map(|m| (*m, None)).collect() };
+    rows.modes = [
+        with_none(&got.paper),
+        with_none(&got.raw),
+        with_none(&got.filtered),
+        with_none(&got.fused),
+    ];
+    // The trackers' medians per camera frame: rodtrack's from the session's report.
+    let mut enh_us: Vec<f64> = report
+        .tracker
+        .iter()
+        .map(|t| t.p50.as_secs_f64() * 1e6)
+        .collect();
+    let mut pap_us = got.paper_us;
     let loop_s = t1.elapsed().as_secs_f64();
 
     let mut overall_stats = Vec::new();
@@ -449,14 +451,14 @@ pub fn run_plans(
                     .div_ceil(p.stride.max(1))
         })
         .sum();
-    let progress = Progress {
+    let progress = std::sync::Arc::new(Progress {
         done: AtomicUsize::new(0),
         total,
         start: Instant::now(),
         current: Mutex::new(BTreeMap::new()),
         last: Mutex::new(Instant::now()),
         enabled: show_progress,
-    };
+    });
     let next = AtomicUsize::new(0);
     let cache: CalibCache = Mutex::new(BTreeMap::new());
     let results: Mutex<Vec<Option<Result<ScenarioResult>>>> =

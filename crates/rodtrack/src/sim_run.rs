@@ -3,11 +3,10 @@
 //! paper's algorithm on the same frames alongside when asked.
 
 use crate::console_hooks::ConsoleHooks;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use rodtrack_console::ConsoleHandle;
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode};
-use rodtrack_io::source::OpenOptions;
 use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
 use rodtrack_sdk::{Hooks, Progress, RunReport, Session, SessionCamera, SessionOptions};
 use std::sync::{Arc, Mutex};
@@ -15,12 +14,8 @@ use std::time::{Duration, Instant};
 
 /// What to run.
 pub struct SimRun<'a> {
-    /// Scenario name.
-    pub scenario: &'a str,
-    /// Frames of the scenario (default: its length).
-    pub frames: Option<usize>,
-    /// Seed of the simulation.
-    pub seed: u64,
+    /// The simulation (its frames are rendered by the sources, in the session's threads).
+    pub sim: &'a rodtrack_sim::Simulation,
     /// Every `every`-th frame only.
     pub every: usize,
     /// Also the paper's algorithm on the same frames.
@@ -144,30 +139,12 @@ impl MeasurementSink for Collect {
 /// Runs the simulated cameras calibrated as `cals` through a session (enhanced mode, the
 /// temporal filter and the fusion); returns the rows and the session's report.
 pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, RunReport)> {
-    let factory = rodtrack_sdk::source_factory();
+    let sources = rodtrack_sim::SimSource::for_simulation(run.sim, run.every)?;
     let mut cameras = Vec::new();
-    for cal in cals {
-        let mut input = format!(
-            "sim://{}?camera={}&seed={}&every={}",
-            run.scenario,
-            cal.index,
-            run.seed,
-            run.every.max(1)
-        );
-        if let Some(n) = run.frames {
-            input.push_str(&format!("&frames={n}"));
-        }
-        let opts = OpenOptions {
-            format: Some(cal.format()?),
-            fps: Some(cal.fps),
-            size: Some((cal.image_width, cal.image_height)),
-        };
-        let source = factory
-            .open(&input, &opts)
-            .with_context(|| format!("opening {input}"))?;
+    for (cal, source) in cals.iter().zip(sources) {
         cameras.push(SessionCamera {
             label: format!("camera {} ({})", cal.index, cal.name),
-            source,
+            source: Box::new(source),
             pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
         });
     }
