@@ -76,5 +76,5 @@ pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
 pub use sim::{CalibOptions, FrameMeta, Simulation, TruthRow};
-pub use source::{register_sim_source, SimSource};
+pub use source::{register_sim_source, Playback, SimSource};
 pub use variations::{apply_variation, VARIATION_NAMES};

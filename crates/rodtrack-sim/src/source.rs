@@ -116,13 +116,28 @@ pub fn register_sim_source(factory: &mut SourceFactory) {
     );
 }
 
-/// How a source delivers its frames.
-#[derive(Debug, Clone, Copy)]
-struct How {
-    realtime: bool,
-    looping: bool,
-    every: usize,
-    prerender: usize,
+/// How a simulated camera delivers its frames (the `sim://` parameters of the same names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Playback {
+    /// Release frame `k` at `k / fps` after the first trigger, and report `live`.
+    pub realtime: bool,
+    /// Endless: frame `k` shows the scenario's frame `k % frames`.
+    pub looping: bool,
+    /// Deliver every `every`-th frame of the timeline (at least 1).
+    pub every: usize,
+    /// Render frames `0..prerender` when opened and cycle through them.
+    pub prerender: usize,
+}
+
+impl Default for Playback {
+    fn default() -> Self {
+        Playback {
+            realtime: false,
+            looping: false,
+            every: 1,
+            prerender: 0,
+        }
+    }
 }
 
 /// One simulated camera; see the module documentation.
@@ -245,7 +260,7 @@ impl SimSource {
                 }
             }
         };
-        let how = How {
+        let how = Playback {
             realtime,
             looping,
             every,
@@ -255,19 +270,17 @@ impl SimSource {
     }
 
     /// One source per camera of `sim` (a simulation already built), sharing it as the sources
-    /// of one `sim://` URI do: every `every`-th frame, not in real time.
-    pub fn for_simulation(sim: &Simulation, every: usize) -> Result<Vec<SimSource>, IoError> {
+    /// of one `sim://` URI do, delivering their frames as `playback` says.
+    pub fn for_simulation(sim: &Simulation, playback: Playback) -> Result<Vec<SimSource>, IoError> {
         let shared = Arc::new(Shared {
             sim: sim.clone(),
             epoch: OnceLock::new(),
             delivered: Mutex::new(Vec::new()),
             progress: Condvar::new(),
         });
-        let how = How {
-            realtime: false,
-            looping: false,
-            every: every.max(1),
-            prerender: 0,
+        let how = Playback {
+            every: playback.every.max(1),
+            ..playback
         };
         (0..sim.cameras().len())
             .map(|c| {
@@ -282,7 +295,7 @@ impl SimSource {
         shared: Arc<Shared>,
         camera: usize,
         opts: &OpenOptions,
-        how: How,
+        how: Playback,
         name: &str,
     ) -> Result<SimSource, IoError> {
         let bad = |reason: String| IoError::BadInput {

@@ -1,23 +1,20 @@
 //! `rodtrack console`: the web console, on the built-in simulator (`--demo`) or for
 //! calibrating real cameras from their calibration inputs (`--inputs cam0.json ...`).
 
+use crate::console_hooks::ConsoleHooks;
+use crate::track::ConsoleRows;
 use anyhow::{anyhow, bail, Context, Result};
-use rodtrack_console::{
-    CalibrationContext, CameraOverlays, CameraSetup, Console, ConsoleHandle, ConsoleOptions,
-    OwnedFrame, PipelineStats, RodOverlay,
-};
-use rodtrack_sdk::{print_warning, read_inputs};
-
-use rodtrack_core::{
-    CameraId, CameraPipeline, FrameSetFilter, FrameView, Measurement, Mode, PixelFormat,
-};
+use rodtrack_console::{CalibrationContext, CameraSetup, Console, ConsoleOptions, OwnedFrame};
+use rodtrack_core::{CameraPipeline, FrameView, Measurement, Mode, PixelFormat};
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
-use rodtrack_sim::{FrameMeta, Simulation};
+use rodtrack_sdk::{
+    print_warning, read_inputs, Hooks, Progress, Session, SessionCamera, SessionOptions,
+};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::sync::Arc;
+use std::time::Duration;
 
 /// Arguments of `rodtrack console`.
 #[derive(Debug, clap::Args)]
@@ -135,36 +132,6 @@ fn load_reference(
     Ok(OwnedFrame::from_view(&view, idx as u64, 0.0))
 }
 
-/// A render request: frame index of the scenario, into this buffer.
-type Request = (usize, Vec<u8>);
-/// A rendered frame.
-type Rendered = Result<(Vec<u8>, FrameMeta), String>;
-
-/// One render thread per camera, each with its own copy of the simulation.
-struct Renderer {
-    tx: mpsc::SyncSender<Request>,
-    rx: mpsc::Receiver<Rendered>,
-}
-
-fn spawn_renderer(mut sim: Simulation, camera: usize) -> Result<Renderer> {
-    let (tx, req_rx) = mpsc::sync_channel::<Request>(2);
-    let (out_tx, rx) = mpsc::sync_channel::<Rendered>(2);
-    std::thread::Builder::new()
-        .name(format!("render-{camera}"))
-        .spawn(move || {
-            while let Ok((index, mut buf)) = req_rx.recv() {
-                let r = sim
-                    .render(index, camera, &mut buf)
-                    .map(|meta| (buf, meta))
-                    .map_err(|e| e.to_string());
-                if out_tx.send(r).is_err() {
-                    break;
-                }
-            }
-        })?;
-    Ok(Renderer { tx, rx })
-}
-
 fn run_demo(args: &Args) -> Result<()> {
     println!(
         "rodtrack console --demo: two simulated 1440x1080 Bayer cameras, scenario `{}`",
@@ -207,181 +174,82 @@ fn run_demo(args: &Args) -> Result<()> {
         "rodtrack console: {} (live demo at {fps:.0} fps)",
         console.url()
     );
-    let mut pipes: Vec<CameraPipeline> = cals
-        .iter()
-        .map(|c| CameraPipeline::new(c, Mode::Enhanced))
-        .collect::<Result<_, _>>()?;
-    let renderers: Vec<Renderer> = (0..ncam)
-        .map(|c| spawn_renderer(sim.clone(), c))
-        .collect::<Result<_>>()?;
-    let mut spare: Vec<Vec<u8>> = (0..ncam)
-        .map(|c| sim.frame_bytes(c).map(|b| vec![0u8; b]))
-        .collect::<Result<_, _>>()?;
+    // The scenario in a loop at real time: the simulated cameras through a session, the
+    // console fed by its hooks and its sink.
+    let sources = rodtrack_sim::SimSource::for_simulation(
+        &sim,
+        rodtrack_sim::Playback {
+            realtime: true,
+            looping: true,
+            ..Default::default()
+        },
+    )?;
+    let mut cameras = Vec::new();
+    for (cal, source) in cals.iter().zip(sources) {
+        cameras.push(SessionCamera {
+            label: format!("camera {} ({})", cal.index, cal.name),
+            source: Box::new(source),
+            pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
+        });
+    }
     drop(sim);
-    let n = sim_frames(args)?;
-    let mut loop_state = DemoLoop {
-        console: &console,
-        filter: FrameSetFilter::new(Mode::Enhanced, ncam > 1),
-        rows: Vec::new(),
-        filtered: Vec::new(),
-        overlays: Vec::new(),
-        geometry: pipes
-            .iter()
-            .map(|p| CameraOverlays::new(p.rods()))
-            .collect(),
-        frame_us: Vec::new(),
-        processed: 0,
-        dropped: 0,
-        last_stats: Instant::now(),
-        window_start: (Instant::now(), 0),
-        fps_recent: 0.0,
+    let console = Arc::new(console);
+    let hooks = LiveHooks(ConsoleHooks::new(console.clone(), &cameras));
+    let session = Session::from_cameras(cameras, SessionOptions::default());
+    let stop = session.stop_flag();
+    crate::track::install_ctrlc(stop.clone());
+    if let Some(secs) = args.seconds {
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("rodtrack-deadline".into())
+            .spawn(move || {
+                std::thread::sleep(Duration::from_secs_f64(secs.max(0.0)));
+                stop.store(true, std::sync::atomic::Ordering::SeqCst);
+            })?;
+    }
+    let sink = ConsoleRows {
+        inner: rodtrack_io::MultiSink::new(),
+        console: Some(console.clone()),
+        stop_on_broken_pipe: None,
     };
-    let t0 = Instant::now();
-    let deadline = args.seconds.map(Duration::from_secs_f64);
-    // Frame k of the endless run is scenario frame k % n; one frame set in flight ahead.
-    let mut k: u64 = 0;
-    for (c, r) in renderers.iter().enumerate() {
-        r.tx.send(((k % n) as usize, std::mem::take(&mut spare[c])))
-            .map_err(|_| anyhow!("render thread {c} stopped"))?;
-    }
-    loop {
-        let mut frames = Vec::with_capacity(ncam);
-        for (c, r) in renderers.iter().enumerate() {
-            let got =
-                r.rx.recv()
-                    .map_err(|_| anyhow!("render thread {c} stopped"))?;
-            frames.push(got.map_err(|e| anyhow!("camera {c}: {e}"))?);
-        }
-        // Real time: the next frame set is the one due now (frames we are late for are dropped).
-        let due = (t0.elapsed().as_secs_f64() * fps) as u64;
-        let next = (k + 1).max(due);
-        loop_state.dropped += next - k - 1;
-        for (c, r) in renderers.iter().enumerate() {
-            let buf = vec![0u8; frames[c].0.len()];
-            let buf = if spare[c].len() == buf.len() {
-                std::mem::take(&mut spare[c])
-            } else {
-                buf
-            };
-            r.tx.send(((next % n) as usize, buf))
-                .map_err(|_| anyhow!("render thread {c} stopped"))?;
-        }
-        // Wait for frame k's time, then track and publish it.
-        let at = Duration::from_secs_f64(k as f64 / fps);
-        if let Some(wait) = at.checked_sub(t0.elapsed()) {
-            std::thread::sleep(wait);
-        }
-        if k % n == 0 {
-            loop_state.filter = FrameSetFilter::new(Mode::Enhanced, ncam > 1);
-        }
-        loop_state.frame_set(&mut pipes, &mut frames, k, k as f64 / fps)?;
-        for (c, (buf, _)) in frames.into_iter().enumerate() {
-            spare[c] = buf;
-        }
-        k = next;
-        if deadline.is_some_and(|d| t0.elapsed() >= d) {
-            break;
-        }
-    }
+    let (report, sink) = session.with_hooks(Arc::new(hooks)).run(sink)?;
+    drop(sink);
+    let sets = report.pipeline.sets_complete + report.pipeline.sets_incomplete;
+    let dropped: u64 = report
+        .pipeline
+        .cameras
+        .iter()
+        .map(|c| c.frames_dropped)
+        .sum();
     let o = console.overhead();
     println!(
-        "processed {} frame sets, dropped {}; console publish calls: {}, {:.1} ms in total",
-        loop_state.processed,
-        loop_state.dropped,
+        "processed {sets} frame sets, dropped {dropped}; console publish calls: {}, {:.1} ms in total",
         o.calls,
         o.total_ns as f64 / 1e6
     );
     Ok(())
 }
 
-fn sim_frames(args: &Args) -> Result<u64> {
-    // The scenario's own length (the simulation was built without a frame limit).
-    let sc = rodtrack_sim::Scenario::by_name(
-        &args.scenario,
-        &rodtrack_sim::SceneConfig::default(),
-        args.seed,
-    )?;
-    Ok(sc.frame_count().max(1) as u64)
-}
+/// The console's live view and status line, from a session's hooks.
+struct LiveHooks(ConsoleHooks);
 
-/// The tracking side of the demo: everything per frame set.
-struct DemoLoop<'a> {
-    console: &'a ConsoleHandle,
-    filter: FrameSetFilter,
-    rows: Vec<Measurement>,
-    filtered: Vec<Measurement>,
-    overlays: Vec<RodOverlay>,
-    /// The overlays' constant parts, per camera.
-    geometry: Vec<CameraOverlays>,
-    frame_us: Vec<f64>,
-    processed: u64,
-    dropped: u64,
-    last_stats: Instant,
-    window_start: (Instant, u64),
-    fps_recent: f64,
-}
-
-impl DemoLoop<'_> {
-    fn frame_set(
-        &mut self,
-        pipes: &mut [CameraPipeline],
-        frames: &mut [(Vec<u8>, FrameMeta)],
-        frame_id: u64,
-        timestamp_s: f64,
-    ) -> Result<()> {
-        let t = Instant::now();
-        self.rows.clear();
-        for (c, (buf, meta)) in frames.iter_mut().enumerate() {
-            let view = FrameView::new(buf, meta.width, meta.height, meta.stride, meta.format)?;
-            pipes[c].process(&view, frame_id, timestamp_s, &mut self.rows)?;
-            // The overlays only when the console wants the frame (kept between frames: the
-            // next live frame reuses them).
-            let wanted = self.console.wants_frame(c as u32);
-            if wanted {
-                self.geometry[c].fill(pipes[c].last_results(), &mut self.overlays);
-            }
-            let overlays: &[RodOverlay] = if wanted { &self.overlays } else { &[] };
-            // The rendered buffer is handed over without a copy (a spare one comes back).
-            self.console.publish_frame_buffer(
-                c as u32,
-                buf,
-                meta.width,
-                meta.height,
-                meta.stride,
-                meta.format,
-                frame_id,
-                timestamp_s,
-                overlays,
-            );
-        }
-        self.filtered.clear();
-        self.filter.process(&self.rows, &mut self.filtered);
-        self.filtered.retain(|m| m.camera == CameraId::Fused);
-        // Each camera's rows and the fused ones, in one call.
-        self.rows.extend_from_slice(&self.filtered);
-        self.console.publish_rows(&self.rows);
-        self.frame_us.push(t.elapsed().as_secs_f64() * 1e6);
-        self.processed += 1;
-        if self.last_stats.elapsed() >= Duration::from_millis(250) {
-            self.last_stats = Instant::now();
-            let (w0, n0) = self.window_start;
-            let dt = w0.elapsed().as_secs_f64();
-            if dt >= 1.0 {
-                self.fps_recent = (self.processed - n0) as f64 / dt;
-                self.window_start = (Instant::now(), self.processed);
-            }
-            let mut recent = self.frame_us.clone();
-            recent.sort_by(|a, b| a.total_cmp(b));
-            let median = recent.get(recent.len() / 2).copied().unwrap_or(0.0);
-            self.frame_us.clear();
-            self.console.publish_stats(&PipelineStats {
-                frames: self.processed,
-                fps: self.fps_recent,
-                frame_time_us: median,
-                dropped_frames: self.dropped,
-                bad_frames: 0,
-            });
-        }
-        Ok(())
+impl Hooks for LiveHooks {
+    fn measured(
+        &self,
+        camera: u32,
+        meta: &rodtrack_io::FrameMeta,
+        rows: &[Measurement],
+        pipe: &CameraPipeline,
+    ) {
+        self.0.measured(camera, meta, rows, pipe);
+    }
+    fn uses_frames(&self) -> bool {
+        true
+    }
+    fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        self.0.frame(camera, buf);
+    }
+    fn progress(&self, p: &Progress) {
+        self.0.publish_progress(p);
     }
 }

@@ -139,7 +139,13 @@ impl MeasurementSink for Collect {
 /// Runs the simulated cameras calibrated as `cals` through a session (enhanced mode, the
 /// temporal filter and the fusion); returns the rows and the session's report.
 pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, RunReport)> {
-    let sources = rodtrack_sim::SimSource::for_simulation(run.sim, run.every)?;
+    let sources = rodtrack_sim::SimSource::for_simulation(
+        run.sim,
+        rodtrack_sim::Playback {
+            every: run.every,
+            ..Default::default()
+        },
+    )?;
     let mut cameras = Vec::new();
     for (cal, source) in cals.iter().zip(sources) {
         cameras.push(SessionCamera {
