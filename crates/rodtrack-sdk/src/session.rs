@@ -341,10 +341,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
         stop,
     } = session;
     let live = cameras.iter().any(|c| c.source.info().live);
-    let config = options
-        .config
-        .clone()
-        .unwrap_or_else(|| pipeline_config(live));
+    let config = options.config.unwrap_or_else(|| pipeline_config(live));
     let ncam = cameras.len();
     let max_frames = options.max_frames;
     let total = if live {
