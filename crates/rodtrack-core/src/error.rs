@@ -77,4 +77,12 @@ pub enum CoreError {
         /// Why.
         reason: String,
     },
+    /// Automatic calibration could not find or follow the markers.
+    #[error("{camera}: {reason}")]
+    AutoCalibration {
+        /// The camera (`camera 0 (INPUT)`).
+        camera: String,
+        /// Why.
+        reason: String,
+    },
 }

@@ -42,6 +42,15 @@ pub enum SdkError {
         #[source]
         source: IoError,
     },
+    /// Something failed while doing `context` (a camera's automatic calibration, ...).
+    #[error("{context}: {source}")]
+    Context {
+        /// What was being done.
+        context: String,
+        /// The error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The session's settings do not fit together (inputs for cameras, ...).
     #[error("{0}")]
     Invalid(String),
@@ -63,5 +72,29 @@ impl SdkError {
             context: context.to_string(),
             source,
         }
+    }
+}
+
+/// `.context(...)` on results whose error is a standard error: the error wrapped in
+/// [`SdkError::Context`].
+pub(crate) trait Context<T> {
+    /// Wraps the error with `context`.
+    fn context(self, context: impl std::fmt::Display) -> Result<T, SdkError>;
+    /// Wraps the error with the context `f` makes (only on error).
+    fn with_context<C: std::fmt::Display>(self, f: impl FnOnce() -> C) -> Result<T, SdkError>;
+}
+
+impl<T, E: std::error::Error + Send + Sync + 'static> Context<T> for Result<T, E> {
+    fn context(self, context: impl std::fmt::Display) -> Result<T, SdkError> {
+        self.map_err(|e| SdkError::Context {
+            context: context.to_string(),
+            source: Box::new(e),
+        })
+    }
+    fn with_context<C: std::fmt::Display>(self, f: impl FnOnce() -> C) -> Result<T, SdkError> {
+        self.map_err(|e| SdkError::Context {
+            context: f().to_string(),
+            source: Box::new(e),
+        })
     }
 }

@@ -26,6 +26,7 @@
 //! # Ok::<(), rodtrack_sdk::SdkError>(())
 //! ```
 
+pub mod auto;
 pub mod calibration;
 pub mod error;
 pub mod hooks;

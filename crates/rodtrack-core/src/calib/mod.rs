@@ -1,5 +1,6 @@
 //! Calibration (paper 2.7): inputs, the calibration file, and the measurements that make it.
 
+pub mod auto;
 pub mod camera;
 pub mod compute;
 pub mod file;
