@@ -3,6 +3,7 @@
 pub mod compute;
 pub mod file;
 pub mod find;
+mod image_size;
 pub mod inputs;
 pub mod opencv;
 pub mod rods;
