@@ -13,7 +13,8 @@ use crate::line::PreparedKnots;
 use crate::marker::Marker;
 use std::f64::consts::TAU;
 
-/// The enhanced mode's state for one rod (see the fields).
+/// The enhanced mode's state for one rod: line tables, scratch buffers, what is learnt over
+/// frames, and the last frame's results between stages.
 #[derive(Debug, Clone)]
 pub(super) struct EnhancedState {
     pub(super) knots: PreparedKnots,
