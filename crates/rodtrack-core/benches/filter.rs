@@ -3,10 +3,10 @@
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::filter::{FilterBank, FilterConfig, RodFilter};
 use rodtrack_core::fusion::{Fuser, FusionConfig};
 use rodtrack_core::{CameraId, Measurement, Status};
-use std::f64::consts::TAU;
 use std::hint::black_box;
 
 const DT: f64 = 0.005;
@@ -21,7 +21,7 @@ fn row(cam: u32, rod: u32, i: u64) -> Measurement {
         camera: CameraId::Camera(cam),
         rod,
         position_mm: 40.0 * (3.0 * t).sin() + 0.3 * n,
-        angle_rad: (20.0 * t + 0.01 * n).rem_euclid(TAU),
+        angle_rad: wrap_2pi(20.0 * t + 0.01 * n),
         angle_unwrapped_rad: 0.0,
         velocity_mm_s: 0.0,
         angular_velocity_rad_s: 0.0,
@@ -36,7 +36,7 @@ fn bench(c: &mut Criterion) {
     let wrong: Vec<Measurement> = rows
         .iter()
         .map(|m| Measurement {
-            angle_rad: (m.angle_rad + if m.frame % 2 == 0 { 0.8 } else { -0.8 }).rem_euclid(TAU),
+            angle_rad: wrap_2pi(m.angle_rad + if m.frame % 2 == 0 { 0.8 } else { -0.8 }),
             ..*m
         })
         .collect();

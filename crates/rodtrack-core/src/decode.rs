@@ -1,6 +1,7 @@
 //! Angle decoding: the paper's coarse Gray code (2.4), single-bin DFT phase (eq. 6) and the four
 //! fusion steps of 2.5.
 
+use crate::angle::wrap_2pi_f32;
 use crate::marker::gray_decode;
 use std::f32::consts::TAU;
 
@@ -42,7 +43,7 @@ pub fn paper_phase(d: &[f32], period: f32) -> f32 {
 /// `[0, steps)`, in Gray steps.
 pub fn paper_fuse(phi: f32, phi_offset: f32, alpha: u32, steps: u32) -> f32 {
     // 1. Offset and rescale to a period of 4.
-    let phi_p = 4.0 * (phi - phi_offset).rem_euclid(TAU) / TAU;
+    let phi_p = 4.0 * wrap_2pi_f32(phi - phi_offset) / TAU;
     // 2. Strip the two low bits.
     let alpha_p = (alpha & !3) as f32;
     // 3. Wrap the difference to [-2, 2] with j.

@@ -83,8 +83,9 @@
 //!
 //! The filter allocates nothing: its whole state is a few numbers per rod.
 
+pub use crate::angle::wrap_pi;
+use crate::angle::{unwrap_near, wrap_2pi};
 use crate::measurement::{Measurement, Status};
-use std::f64::consts::{PI, TAU};
 
 /// Tuning of a [`RodFilter`]. All rates come from the measurement timestamps, not from a fixed
 /// frame rate; `nominal_dt_s` is only used when a frame's time step is not usable.
@@ -231,16 +232,6 @@ impl std::fmt::Display for Rejection {
             ),
             Rejection::Unconfirmed => f.write_str("new track not yet confirmed"),
         }
-    }
-}
-
-/// Wraps an angle difference to `(-pi, pi]`.
-pub fn wrap_pi(a: f64) -> f64 {
-    let w = (a + PI).rem_euclid(TAU) - PI;
-    if w <= -PI {
-        w + TAU
-    } else {
-        w
     }
 }
 
@@ -624,7 +615,7 @@ impl RodFilter {
         let acc_var_ang = (0.1 * c.max_angular_accel_rad_s2).powi(2);
         let start = |angle: f64| -> Candidate {
             let unwrapped = match reference {
-                Some(r) => r + wrap_pi(angle - r),
+                Some(r) => unwrap_near(angle, r),
                 None => angle,
             };
             Candidate {
@@ -715,7 +706,7 @@ impl RodFilter {
             camera: m.camera,
             rod: m.rod,
             position_mm: tr.pos.x(),
-            angle_rad: tr.ang.x().rem_euclid(TAU),
+            angle_rad: wrap_2pi(tr.ang.x()),
             angle_unwrapped_rad: tr.ang.x(),
             velocity_mm_s: tr.pos.v(),
             angular_velocity_rad_s: tr.ang.v(),

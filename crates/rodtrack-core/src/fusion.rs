@@ -30,9 +30,9 @@
 //!
 //! [`RodFilter`]: crate::filter::RodFilter
 
-use crate::filter::{wrap_pi, FilterBank};
+use crate::angle::{wrap_2pi, wrap_pi};
+use crate::filter::FilterBank;
 use crate::measurement::{CameraId, Measurement, Status};
-use std::f64::consts::TAU;
 
 /// Tuning of a [`Fuser`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -418,7 +418,7 @@ impl Fuser {
             camera: CameraId::Fused,
             rod: r.rod,
             position_mm: p_sum / wp_sum,
-            angle_rad: (r.angle_rad + da).rem_euclid(TAU),
+            angle_rad: wrap_2pi(r.angle_rad + da),
             angle_unwrapped_rad: r.angle_unwrapped_rad + da,
             velocity_mm_s: v_sum / wp_sum,
             angular_velocity_rad_s: av_sum / wa_sum,

@@ -1,6 +1,7 @@
 //! rodtrack's algorithms: frame views, the marker, the camera model, line sampling, the
 //! paper's signal steps and rodtrack's enhanced ones, and the measurement record. No I/O.
 
+pub mod angle;
 pub mod calib;
 pub mod camera;
 pub mod decode;

@@ -6,6 +6,7 @@
 //! `theta`, the surface line facing the camera reads `gray(floor(32 theta / 2 pi))` plus a
 //! per-rod constant that calibration removes.
 
+use crate::angle::wrap_2pi;
 use crate::CoreError;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
@@ -247,7 +248,7 @@ impl Marker {
     /// Which Gray step a print angle falls into: `floor(steps * psi / 2 pi)`.
     pub fn step_of(&self, psi_rad: f64) -> u32 {
         let s = self.steps();
-        let n = (psi_rad.rem_euclid(TAU) / TAU * s as f64).floor() as u32;
+        let n = (wrap_2pi(psi_rad) / TAU * s as f64).floor() as u32;
         n.min(s - 1)
     }
 

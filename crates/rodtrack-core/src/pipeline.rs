@@ -1,5 +1,6 @@
 //! One camera, one frame, every rod: the per-camera pipeline that turns a frame into rows.
 
+use crate::angle::wrap_pi_fold;
 use crate::calib::CameraCalibration;
 use crate::filter::{FilterBank, FilterConfig};
 use crate::frame::FrameView;
@@ -7,7 +8,6 @@ use crate::fusion::{Disagreement, Fuser, FusionConfig, OutOfSync};
 use crate::measurement::{CameraId, Measurement, Status};
 use crate::track::{Mode, RodResult, RodTracker};
 use crate::CoreError;
-use std::f64::consts::{PI, TAU};
 
 /// Per-rod state kept across frames: the multi-turn count.
 #[derive(Debug, Clone, Copy, Default)]
@@ -93,13 +93,7 @@ impl CameraPipeline {
                 // Multi-turn count: the absolute angle needs no history, the turn count does.
                 turn.unwrapped = match turn.last_angle {
                     None => r.angle_rad,
-                    Some(prev) => {
-                        let mut d = (r.angle_rad - prev).rem_euclid(TAU);
-                        if d > PI {
-                            d -= TAU;
-                        }
-                        turn.unwrapped + d
-                    }
+                    Some(prev) => turn.unwrapped + wrap_pi_fold(r.angle_rad - prev),
                 };
                 turn.last_angle = Some(r.angle_rad);
                 m.angle_unwrapped_rad = turn.unwrapped;

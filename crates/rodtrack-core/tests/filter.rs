@@ -3,6 +3,7 @@
 //! decoder's typical gross errors (a stripe period pi/4, a Gray step 2 pi/32, a barcode cell).
 #![allow(clippy::unwrap_used, missing_docs)]
 
+use rodtrack_core::angle::{wrap_2pi, wrap_pi};
 use rodtrack_core::filter::{FilterBank, FilterConfig, Rejection, RodFilter};
 use rodtrack_core::fusion::{Fuser, FusionConfig};
 use rodtrack_core::{CameraId, Measurement, Status};
@@ -61,7 +62,7 @@ fn row(cam: u32, i: usize, tr: &Truth, rng: &mut Rng) -> Measurement {
         camera: CameraId::Camera(cam),
         rod: 3,
         position_mm: tr.position_mm + SIGMA_POS * rng.gauss(),
-        angle_rad: (tr.angle_rad + SIGMA_ANG * rng.gauss()).rem_euclid(TAU),
+        angle_rad: wrap_2pi(tr.angle_rad + SIGMA_ANG * rng.gauss()),
         angle_unwrapped_rad: 0.0,
         velocity_mm_s: 0.0,
         angular_velocity_rad_s: 0.0,
@@ -332,7 +333,7 @@ fn single_gross_errors_are_flagged_never_ok() {
             if i > 20 && i % 11 == 0 {
                 let k = i / 11;
                 if k % 2 == 0 {
-                    m.angle_rad = (m.angle_rad + errors_rad[(k / 2) % 4]).rem_euclid(TAU);
+                    m.angle_rad = wrap_2pi(m.angle_rad + errors_rad[(k / 2) % 4]);
                 } else {
                     m.position_mm += errors_mm[(k / 2) % 4];
                 }
@@ -381,7 +382,7 @@ fn consecutive_gross_errors_do_not_take_over() {
     for start in (40..360).step_by(37) {
         let (out, _) = run(FilterConfig::default(), &tr, 6, |i, mut m| {
             if (start..start + 3).contains(&i) {
-                m.angle_rad = (m.angle_rad + PI / 4.0).rem_euclid(TAU);
+                m.angle_rad = wrap_2pi(m.angle_rad + PI / 4.0);
             }
             m
         });
@@ -496,14 +497,14 @@ fn reacquisition_of_a_spinning_rod_and_a_wrong_first_frame() {
                 return missing(&m, Status::OutOfView);
             }
             if i == 200 || i == 0 {
-                m.angle_rad = (m.angle_rad + err).rem_euclid(TAU);
+                m.angle_rad = wrap_2pi(m.angle_rad + err);
             }
             m
         });
         // The turn count after loss cannot be known: compare modulo 2 pi.
         for (i, (o, t)) in out.iter().zip(&tr).enumerate() {
             if o.status == Status::Ok {
-                let ea = (o.angle_rad - t.angle_rad.rem_euclid(TAU) + PI).rem_euclid(TAU) - PI;
+                let ea = wrap_pi(o.angle_rad - wrap_2pi(t.angle_rad));
                 assert!(ea.abs() < 0.08, "error {err}: frame {i} ok off by {ea}");
             }
         }
@@ -683,7 +684,7 @@ fn disagreeing_camera_is_detected_and_resolved_by_the_filter() {
         if bad {
             // Camera 1 decodes one stripe period off, or its correlation peak one cell off.
             if i % 20 == 0 {
-                rows[1].angle_rad = (rows[1].angle_rad + PI / 4.0).rem_euclid(TAU);
+                rows[1].angle_rad = wrap_2pi(rows[1].angle_rad + PI / 4.0);
             } else {
                 rows[1].position_mm += 4.0;
             }

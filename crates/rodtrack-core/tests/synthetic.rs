@@ -2,6 +2,7 @@
 //! simulator): calibration from a reference frame, then tracking against ground truth.
 #![allow(clippy::unwrap_used, missing_docs)]
 
+use rodtrack_core::angle::wrap_pi_fold;
 use rodtrack_core::calib::{calibrate_rod, ReferencePose, RodInputs};
 use rodtrack_core::{FrameView, Marker, MarkerSpec, Mode, PixelFormat, RodTracker, Status};
 use std::f64::consts::TAU;
@@ -88,8 +89,7 @@ fn inputs() -> RodInputs {
 }
 
 fn ang_err(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(TAU);
-    d.min(TAU - d)
+    wrap_pi_fold(a - b).abs()
 }
 
 fn run(setup: &Setup, mode: Mode, noise: f64) -> (f64, f64, f64, f64, usize) {

@@ -4,8 +4,8 @@
 
 use crate::scenario::Scenario;
 use crate::scene::{SceneConfig, Team};
+use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::Marker;
-use std::f64::consts::TAU;
 
 /// A 3-vector.
 pub type V3 = [f32; 3];
@@ -173,7 +173,7 @@ impl WorldGeom {
                 sphi: phi.sin() as f32,
                 dir: rc.marker_dir as f32,
                 marker_start: rc.marker_y(0.0, p.position_mm) as f32,
-                psi_base: (p.angle_rad + rc.psi0_rad).rem_euclid(TAU) as f32,
+                psi_base: wrap_2pi(p.angle_rad + rc.psi0_rad) as f32,
                 hu_blur: (0.5 * p.velocity_mm_s.abs() * blur_s) as f32,
                 hpsi_blur: (0.5 * p.angular_velocity_rad_s.abs() * blur_s) as f32,
                 figs,
@@ -804,6 +804,7 @@ impl Table {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::TAU;
 
     /// The analytic box filter agrees with the marker's own point definition.
     #[test]

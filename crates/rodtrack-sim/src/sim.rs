@@ -7,12 +7,12 @@ use crate::rng::{hash_words, Rng};
 use crate::scenario::Scenario;
 use crate::scene::{Lighting, SceneConfig};
 use crate::SimError;
+use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::calib::{
     CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
 };
 use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
 use serde::{Deserialize, Serialize};
-use std::f64::consts::TAU;
 
 /// What [`Simulation::render`] produced.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -622,7 +622,7 @@ impl Ctx {
                         camera: CameraId::Camera(cam as u32),
                         rod: i as u32,
                         position_mm: p.position_mm,
-                        angle_rad: p.angle_rad.rem_euclid(TAU),
+                        angle_rad: wrap_2pi(p.angle_rad),
                         angle_unwrapped_rad: p.angle_rad,
                         velocity_mm_s: p.velocity_mm_s,
                         angular_velocity_rad_s: p.angular_velocity_rad_s,

@@ -10,6 +10,7 @@ use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
 use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
+use crate::angle::wrap_2pi;
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
@@ -431,7 +432,7 @@ pub fn calibrate_rod_with(
         cal.knots.s0_mm -= dpos;
     }
     cal.enhanced.angle_offset_rad =
-        (r.theta_steps * TAU / marker.steps() as f64 - inputs.reference.angle_rad).rem_euclid(TAU);
+        wrap_2pi(r.theta_steps * TAU / marker.steps() as f64 - inputs.reference.angle_rad);
     let code_phase = {
         let d = (r.theta_steps - (r.gray_step as f64 + 0.5)).rem_euclid(marker.steps() as f64);
         d.min(marker.steps() as f64 - d)
@@ -696,7 +697,7 @@ fn paper_params(
     let mut tr = RodTracker::new(&probe, frame.width(), frame.height(), Mode::Paper)?;
     let r1 = tr.process(frame)?;
     p.angle_offset_rad =
-        (r1.theta_steps * TAU / marker.steps() as f64 - cal.reference_angle_rad).rem_euclid(TAU);
+        wrap_2pi(r1.theta_steps * TAU / marker.steps() as f64 - cal.reference_angle_rad);
     let _ = fit_line_tls;
     Ok(p)
 }

@@ -1,7 +1,7 @@
 //! The calibration file: everything tracking needs per rod, human-readable (TOML), validated on
 //! load with errors that name the rod and the field.
 
-use crate::calib::inputs::OpencvModel;
+use super::opencv::OpencvModel;
 use crate::line::Knots;
 use crate::marker::{Marker, MarkerSpec};
 use crate::{CoreError, PixelFormat};
@@ -164,27 +164,6 @@ impl CameraCalibration {
             field: format!("cameras[{}].pixel_format", self.index),
             reason: format!("unknown pixel format {:?}", self.pixel_format),
         })
-    }
-}
-
-impl CalibrationFile {
-    /// Checks every field; the error names the camera, rod and field.
-    pub fn validate(&self) -> Result<(), CoreError> {
-        if self.version != CALIBRATION_VERSION {
-            return Err(CoreError::FileField {
-                field: "version".into(),
-                reason: format!("must be {CALIBRATION_VERSION}, got {}", self.version),
-            });
-        }
-        super::validate::validate_file(self)?;
-        for cam in &self.cameras {
-            cam.format()?;
-            super::validate::validate_camera(cam)?;
-            for rod in &cam.rods {
-                rod.validate(cam.image_width, cam.image_height)?;
-            }
-        }
-        Ok(())
     }
 }
 

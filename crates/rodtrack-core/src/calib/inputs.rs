@@ -8,44 +8,15 @@
 //! resolves that key and puts the model it reads into `opencv_model_optional`; giving both is
 //! an error.
 
+pub use super::image_size::ImageSize;
+pub use super::opencv::OpencvModel;
 use crate::marker::MarkerSpec;
-use serde::{Deserialize, Deserializer, Serialize};
+use serde::{Deserialize, Serialize};
 
 /// Key of the calibration inputs that names an OpenCV FileStorage file (YAML or JSON) holding
 /// the camera model, relative to the inputs file. Read by the file loader, never stored in
 /// [`CalibrationInputs`]: the model read from it becomes `opencv_model_optional`.
 pub const OPENCV_MODEL_FILE_KEY: &str = "opencv_model_file";
-
-/// Image size in pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ImageSize {
-    /// Width, px.
-    pub width: usize,
-    /// Height, px.
-    pub height: usize,
-}
-
-/// An OpenCV camera model as in the calibration inputs.
-///
-/// Written as `{"camera_matrix": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "dist_coeffs": [k1, k2,
-/// p1, p2, k3]}`. Read from that, and also from the forms `cv::FileStorage` writes: the keys
-/// `cameraMatrix`/`K` and `distortion_coefficients`/`distCoeffs`/`D`, matrices as
-/// `{"type_id": "opencv-matrix", "rows": 3, "cols": 3, "dt": "d", "data": [...]}`, 4, 5, 8, 12
-/// or 14 coefficients of which those after `k3` must be zero. Other keys are refused.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct OpencvModel {
-    /// 3x3 camera matrix.
-    pub camera_matrix: [[f64; 3]; 3],
-    /// Distortion coefficients `(k1, k2, p1, p2[, k3[, zeros]])`.
-    pub dist_coeffs: Vec<f64>,
-}
-
-impl<'de> Deserialize<'de> for OpencvModel {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let node = super::opencv::Node::deserialize(d)?;
-        super::opencv::model_from_node(&node, true).map_err(serde::de::Error::custom)
-    }
-}
 
 /// Where the reference frames are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -5,6 +5,7 @@ pub mod camera;
 pub mod compute;
 pub mod file;
 pub mod find;
+mod image_size;
 pub mod inputs;
 pub mod opencv;
 pub mod rods;

@@ -3,7 +3,7 @@
 //! tracking allocate without bound, plus the references between fields (rod ids unique, rods
 //! present). Errors name the camera, the rod and the field.
 
-use super::file::{CalibrationFile, CameraCalibration};
+use super::file::{CalibrationFile, CameraCalibration, CALIBRATION_VERSION};
 use super::inputs::CalibrationInputs;
 use crate::CoreError;
 
@@ -200,4 +200,25 @@ pub fn validate_file(file: &CalibrationFile) -> Result<(), CoreError> {
         }
     }
     Ok(())
+}
+
+impl CalibrationFile {
+    /// Checks every field; the error names the camera, rod and field.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        if self.version != CALIBRATION_VERSION {
+            return Err(CoreError::FileField {
+                field: "version".into(),
+                reason: format!("must be {CALIBRATION_VERSION}, got {}", self.version),
+            });
+        }
+        validate_file(self)?;
+        for cam in &self.cameras {
+            cam.format()?;
+            validate_camera(cam)?;
+            for rod in &cam.rods {
+                rod.validate(cam.image_width, cam.image_height)?;
+            }
+        }
+        Ok(())
+    }
 }

@@ -1,0 +1,86 @@
+//! The enhanced mode's tuning constants, by stage: the search, the edges, the Gray bits, the
+//! shading, the phase and its learnt radius correction, and the judge's thresholds. The
+//! learners' own gates and schedules sit with them (associated constants of
+//! [`super::CentreFit`], [`super::ScaleFit`] and their parts).
+
+// ---------------------------------------------------------------- locate (steps 1-2)
+
+/// Candidate search margin beyond the travel, mm.
+pub(super) const SEARCH_MARGIN_MM: f64 = 10.0;
+/// Half widths of the search windows around where the marker is expected (the last frame's
+/// position plus its motion), mm, tried in turn: a change of speed of 0.8 m/s, then of
+/// 2.4 m/s, from one frame to the next at 200 fps. Beyond them, the whole travel is searched.
+/// The prediction is usually right to a fraction of a mm, so the narrow window nearly always
+/// holds the peak, at a third of the wide one's cost.
+pub(super) const SEARCH_WINDOWS_MM: [f64; 2] = [4.0, 12.0];
+/// Largest motion from one frame to the next taken as motion (not a jump), mm.
+pub(super) const MAX_MOTION_MM: f64 = 40.0;
+
+// ---------------------------------------------------------------- edges (step 3)
+
+/// Fine-profile half length around an edge, in cells.
+pub(super) const EDGE_HALF_CELLS: f64 = 0.5;
+/// Fine-profile samples per cell.
+pub(super) const EDGE_SAMPLES_PER_CELL: usize = 10;
+
+// ---------------------------------------------------------------- centre line
+
+/// Most rings whose silhouettes one frame adds to the learnt centre line.
+pub const MAX_RINGS: usize = 32;
+
+// ---------------------------------------------------------------- Gray bits (step 4)
+
+/// Where a Gray bit is read, around its bit space's centre: (along the rod in bit spaces,
+/// across it in radii).
+pub(super) const GRAY_SAMPLES: [(f64, f64); 5] = [
+    (0.0, 0.0),
+    (-0.2, 0.0),
+    (0.2, 0.0),
+    (0.0, -0.15),
+    (0.0, 0.15),
+];
+/// Where the quiet zone is read, around its middle: (along the rod in quiet-zone lengths,
+/// across it in radii). Plain white: two samples are enough.
+pub(super) const QUIET_SAMPLES: [(f64, f64); 2] = [(0.0, -0.15), (0.0, 0.15)];
+/// Shortest quiet zone after the Gray code that serves as the white reference of the Gray
+/// bits' threshold, mm.
+pub(super) const QUIET_REFERENCE_MIN_MM: f64 = 2.0;
+
+// ---------------------------------------------------------------- shading
+
+/// How far the marker may move from where the print's shading was measured before it is
+/// measured again, mm.
+pub(super) const SHADING_REUSE_MM: f64 = 5.0;
+/// For how many frames a shading measurement is reused at most.
+pub(super) const SHADING_REUSE_FRAMES: u32 = 8;
+
+// ---------------------------------------------------------------- phase (step 5)
+
+/// Phase samples per stripe period.
+pub(super) const PHASE_SAMPLES_PER_PERIOD: usize = 8;
+/// Frames over which the radius correction `eps` is scored every frame; then every
+/// [`EPS_RESCORE_EVERY`]th frame.
+pub(super) const EPS_LEARN_FRAMES: u64 = 64;
+/// After [`EPS_LEARN_FRAMES`], the radius correction `eps` is scored on every this many
+/// frames (its scores forgotten by [`EPS_FORGET`] per frame all the same).
+pub(super) const EPS_RESCORE_EVERY: u64 = 8;
+/// The phase's grid of radius corrections `eps`: `EPS_GRID` values from -0.08 by 0.01 (see
+/// [`eps_of`]).
+pub(super) const EPS_GRID: usize = 21;
+/// The radius correction `eps` of grid point `i` (`0..EPS_GRID`): -0.08 at 0, 0 at 8.
+pub(super) fn eps_of(i: usize) -> f64 {
+    (i as f64 - 8.0) * 0.01
+}
+/// Per-frame forgetting factor of the `eps` scores.
+pub(super) const EPS_FORGET: f64 = 0.995;
+
+// ---------------------------------------------------------------- judge (step 6)
+
+/// The stripes' fundamental over a square wave's between the print's black and white, above
+/// which bit space 0 is not (only) the print: 1 at most for the print itself, with room for
+/// the error of the shading it is normalised by.
+pub(super) const MAX_STRIPE_AMP_RATIO: f64 = 1.2;
+/// The least share of the stripes' variation across the rod that their fundamental must
+/// explain: 0.81 for sharp stripes (8/pi^2), more when blurred; below this, noise alone
+/// would have to be a third of the variation.
+pub(super) const MIN_STRIPE_SHARE: f64 = 0.6;
