@@ -43,8 +43,8 @@ use rodtrack_core::fusion::{Fuser, FusionConfig};
 use rodtrack_core::FrameSetFilter;
 use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode, PixelFormat};
 use rodtrack_io::runtime::{
-    Handoff, LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig,
-    PipelineCounters, PipelineReport, WriteMode,
+    Handoff, LatencyHistogram, LatencySummary, Pipeline, PipelineConfig, PipelineCounters,
+    PipelineReport, RunMode, WriteMode,
 };
 use rodtrack_io::source::{OpenOptions, SourceInfo};
 use rodtrack_io::{FrameBuffer, FrameSource, MeasurementSink, SourceError, SourceFactory};

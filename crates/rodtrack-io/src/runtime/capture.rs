@@ -1,7 +1,7 @@
-//! The capture loop: a camera's source read frame by frame (paced in [`Mode::Paced`]), and the
+//! The capture loop: a camera's source read frame by frame (paced in [`RunMode::Paced`]), and the
 //! bounded queue to its processing thread ([`super::Handoff::Queue`]).
 
-use super::config::Mode;
+use super::config::RunMode;
 use super::report::{push_error, CameraCounters, PipelineCounters};
 use crate::frame::{BufferPool, FrameBuffer, Timestamp};
 use crate::source::FrameSource;
@@ -29,7 +29,7 @@ pub(super) struct Captured {
 pub(super) struct Capture {
     pub(super) camera: usize,
     pub(super) source: Box<dyn FrameSource>,
-    pub(super) mode: Mode,
+    pub(super) mode: RunMode,
     pub(super) stop: Arc<AtomicBool>,
     pub(super) counters: Arc<PipelineCounters>,
     pub(super) errors: Arc<Mutex<Vec<String>>>,
@@ -71,7 +71,7 @@ impl Capture {
                     break;
                 }
             }
-            if let Mode::Paced { speed } = self.mode {
+            if let RunMode::Paced { speed } = self.mode {
                 let ts = buf.meta.timestamp_ns.as_nanos();
                 let (t0, ts0) = *pace.get_or_insert((Instant::now(), ts));
                 let dt = ts.saturating_sub(ts0) as f64 / speed;
@@ -97,13 +97,13 @@ impl Capture {
 pub(super) fn enqueue(
     tx: &Sender<Captured>,
     msg: Captured,
-    mode: Mode,
+    mode: RunMode,
     stop: &AtomicBool,
     counters: &CameraCounters,
     pool: &BufferPool,
 ) -> bool {
     match mode {
-        Mode::Live | Mode::Paced { .. } => match tx.try_send(msg) {
+        RunMode::Live | RunMode::Paced { .. } => match tx.try_send(msg) {
             Ok(()) => true,
             Err(TrySendError::Full(m)) => {
                 counters.frames_dropped.fetch_add(1, Ordering::Relaxed);
@@ -112,7 +112,7 @@ pub(super) fn enqueue(
             }
             Err(TrySendError::Disconnected(_)) => false,
         },
-        Mode::Batch => {
+        RunMode::Batch => {
             let mut m = msg;
             loop {
                 match tx.send_timeout(m, Duration::from_millis(20)) {

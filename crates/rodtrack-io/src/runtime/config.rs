@@ -1,4 +1,4 @@
-//! The pipeline's settings ([`PipelineConfig`], the release [`Mode`], [`Handoff`],
+//! The pipeline's settings ([`PipelineConfig`], the release [`RunMode`], [`Handoff`],
 //! [`WriteMode`], [`Grouping`]) and the stages a caller plugs in ([`ProcessFn`],
 //! [`CameraFilterFn`], [`FrameHookFn`], [`FusionFn`] with its [`FrameSetInfo`]).
 
@@ -33,7 +33,7 @@ pub type FusionFn = Box<dyn FnMut(&FrameSetInfo, &[Measurement], &mut Vec<Measur
 
 /// How frames are released.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Mode {
+pub enum RunMode {
     /// As the source delivers them (cameras); drop when the queue is full.
     Live,
     /// At the source's timestamps, scaled by `speed` (1.0 = real time), replaying files as a
@@ -46,13 +46,13 @@ pub enum Mode {
     Batch,
 }
 
-impl Mode {
-    /// [`Mode::Live`] for live sources (cameras), [`Mode::Batch`] for recordings.
-    pub fn for_source(live: bool) -> Mode {
+impl RunMode {
+    /// [`RunMode::Live`] for live sources (cameras), [`RunMode::Batch`] for recordings.
+    pub fn for_source(live: bool) -> RunMode {
         if live {
-            Mode::Live
+            RunMode::Live
         } else {
-            Mode::Batch
+            RunMode::Batch
         }
     }
 }
@@ -98,7 +98,7 @@ pub enum Grouping {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PipelineConfig {
     /// Release mode.
-    pub mode: Mode,
+    pub mode: RunMode,
     /// Frames queued per camera between capture and processing (at least 1;
     /// [`Handoff::Queue`]).
     pub queue_depth: usize,
@@ -125,7 +125,7 @@ pub struct PipelineConfig {
 impl Default for PipelineConfig {
     fn default() -> Self {
         PipelineConfig {
-            mode: Mode::Batch,
+            mode: RunMode::Batch,
             queue_depth: 4,
             grouping: Grouping::FrameId,
             group_timeout: Duration::from_millis(200),

@@ -13,9 +13,9 @@
 //!  source 1 -> [capture 1 + process 1 + filter 1] --/
 //! ```
 //!
-//! - Capture never waits for a slow consumer in [`Mode::Live`] and [`Mode::Paced`] with
+//! - Capture never waits for a slow consumer in [`RunMode::Live`] and [`RunMode::Paced`] with
 //!   [`Handoff::Queue`]: when the queue is full the frame is dropped and counted.
-//!   [`Mode::Batch`] (files read as fast as possible) blocks instead and never drops. With
+//!   [`RunMode::Batch`] (files read as fast as possible) blocks instead and never drops. With
 //!   [`Handoff::Inline`] the capture thread processes each frame itself: the source's own
 //!   buffers are the queue, and frames it skips meanwhile show as gaps in its frame ids
 //!   ([`CameraStats::frames_skipped`], counted in every mode).
@@ -42,12 +42,12 @@
 //!
 //! ```no_run
 //! use rodtrack_core::{CameraId, Measurement, Status};
-//! use rodtrack_io::runtime::{Mode, Pipeline, PipelineConfig};
+//! use rodtrack_io::runtime::{RunMode, Pipeline, PipelineConfig};
 //! use rodtrack_io::{CsvSink, OpenOptions, SourceFactory};
 //!
 //! # fn main() -> Result<(), rodtrack_io::IoError> {
 //! let factory = SourceFactory::new();
-//! let mut pipeline = Pipeline::new(PipelineConfig { mode: Mode::Paced { speed: 1.0 }, ..Default::default() });
+//! let mut pipeline = Pipeline::new(PipelineConfig { mode: RunMode::Paced { speed: 1.0 }, ..Default::default() });
 //! for input in ["rec/cam0", "raw:rec/cam1.raw?width=1440&height=1080&format=bayer_rggb8"] {
 //!     let source = factory.open(input, &OpenOptions::default())?;
 //!     pipeline.add_camera(source, Box::new(|meta, frame, rows| {
@@ -79,8 +79,8 @@ mod worker;
 
 pub use budget::{track_memory_budget, BASE_BYTES};
 pub use config::{
-    CameraFilterFn, FrameHookFn, FrameSetInfo, FusionFn, Grouping, Handoff, Mode, PipelineConfig,
-    ProcessFn, WriteMode,
+    CameraFilterFn, FrameHookFn, FrameSetInfo, FusionFn, Grouping, Handoff, PipelineConfig,
+    ProcessFn, RunMode, WriteMode,
 };
 pub use latency::{LatencyHistogram, LatencyStages, LatencySummary};
 pub use report::{CameraCounters, CameraStats, PipelineCounters, PipelineReport};
@@ -243,7 +243,7 @@ impl Pipeline {
         if self.cameras.is_empty() {
             return Err(IoError::Config("no cameras".into()));
         }
-        if let Mode::Paced { speed } = self.config.mode {
+        if let RunMode::Paced { speed } = self.config.mode {
             if !(speed > 0.0 && speed.is_finite()) {
                 return Err(IoError::Config(format!(
                     "paced speed must be > 0, got {speed}"
