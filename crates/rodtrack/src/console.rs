@@ -14,7 +14,7 @@ use rodtrack_core::{
 };
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
-use rodtrack_sim::{FrameMeta, Simulation};
+use rodtrack_sim::{RenderInfo, Simulation};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -139,7 +139,7 @@ fn load_reference(
 /// A render request: frame index of the scenario, into this buffer.
 type Request = (usize, Vec<u8>);
 /// A rendered frame.
-type Rendered = Result<(Vec<u8>, FrameMeta), String>;
+type Rendered = Result<(Vec<u8>, RenderInfo), String>;
 
 /// One render thread per camera, each with its own copy of the simulation.
 struct Renderer {
@@ -321,7 +321,7 @@ impl DemoLoop<'_> {
     fn frame_set(
         &mut self,
         pipes: &mut [CameraPipeline],
-        frames: &mut [(Vec<u8>, FrameMeta)],
+        frames: &mut [(Vec<u8>, RenderInfo)],
         frame_id: u64,
         timestamp_s: f64,
     ) -> Result<()> {

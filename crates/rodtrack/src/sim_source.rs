@@ -132,7 +132,7 @@ pub struct SimSource {
     /// How long the last frame took to render or copy.
     prep: Duration,
     /// Frames rendered when opened (`prerender`), with their metadata.
-    prerendered: Vec<(rodtrack_sim::FrameMeta, Vec<u8>)>,
+    prerendered: Vec<(rodtrack_sim::RenderInfo, Vec<u8>)>,
 }
 
 /// Most bytes `prerender` may hold per source.
@@ -334,7 +334,7 @@ impl FrameSource for SimSource {
             let (m, data) = &self.prerendered[index % self.prerendered.len()];
             let n = data.len().min(buf.data.len());
             buf.data[..n].copy_from_slice(&data[..n]);
-            rodtrack_sim::FrameMeta {
+            rodtrack_sim::RenderInfo {
                 frame_id: index as u64,
                 timestamp_s: self.sim.timestamp_s(index),
                 ..*m

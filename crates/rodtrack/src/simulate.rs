@@ -89,7 +89,7 @@ pub fn calibrate_sim_camera(
 ) -> Result<(
     rodtrack_core::calib::CalibrationInputs,
     Vec<u8>,
-    rodtrack_sim::FrameMeta,
+    rodtrack_sim::RenderInfo,
     rodtrack_core::calib::CameraCalibration,
 )> {
     let inputs = sim.calibration_inputs(c, seed)?;
