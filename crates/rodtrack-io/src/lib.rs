@@ -17,7 +17,6 @@ extern crate self as rodtrack_io;
 
 pub mod error;
 pub mod frame;
-pub mod marker_print;
 pub mod runtime;
 pub mod sink;
 pub mod source;

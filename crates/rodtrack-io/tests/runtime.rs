@@ -5,13 +5,13 @@
 mod runtime_fakes;
 
 use rodtrack_core::{CameraId, PixelFormat, Status};
-use rodtrack_io::runtime::{Grouping, Handoff, Mode, Pipeline, PipelineConfig};
+use rodtrack_io::runtime::{Grouping, Handoff, Pipeline, PipelineConfig, RunMode};
 use rodtrack_io::{read_measurements_csv, CsvSink, FrameSource};
 use runtime_fakes::{tracker, Fake, Writes};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-fn config(mode: Mode) -> PipelineConfig {
+fn config(mode: RunMode) -> PipelineConfig {
     PipelineConfig {
         mode,
         ..Default::default()
@@ -20,7 +20,7 @@ fn config(mode: Mode) -> PipelineConfig {
 
 #[test]
 fn groups_two_cameras_by_frame_id() {
-    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut p = Pipeline::new(config(RunMode::Batch));
     p.add_camera(Box::new(Fake::new(0..300)), tracker(Duration::ZERO));
     p.add_camera(Box::new(Fake::new(0..300)), tracker(Duration::ZERO));
     p.set_fusion(Box::new(|set, rows, out| {
@@ -81,7 +81,7 @@ fn groups_two_cameras_by_frame_id() {
 
 #[test]
 fn a_missing_frame_is_reported_without_waiting() {
-    let mut cfg = config(Mode::Batch);
+    let mut cfg = config(RunMode::Batch);
     cfg.group_timeout = Duration::from_secs(60);
     let mut p = Pipeline::new(cfg);
     p.add_camera(Box::new(Fake::new(0..20)), tracker(Duration::ZERO));
@@ -116,7 +116,7 @@ fn a_missing_frame_is_reported_without_waiting() {
 
 #[test]
 fn a_stalled_camera_is_not_waited_for_beyond_the_timeout() {
-    let mut cfg = config(Mode::Live);
+    let mut cfg = config(RunMode::Live);
     cfg.group_timeout = Duration::from_millis(50);
     let mut p = Pipeline::new(cfg);
     let mut a = Fake::new(0..40);
@@ -167,7 +167,7 @@ fn a_stalled_camera_is_not_waited_for_beyond_the_timeout() {
 
 #[test]
 fn a_slow_consumer_makes_live_capture_drop_and_batch_block() {
-    for mode in [Mode::Live, Mode::Batch] {
+    for mode in [RunMode::Live, RunMode::Batch] {
         let mut cfg = config(mode);
         cfg.queue_depth = 2;
         let mut p = Pipeline::new(cfg);
@@ -186,7 +186,7 @@ fn a_slow_consumer_makes_live_capture_drop_and_batch_block() {
         assert_eq!(r.rows_written, 2 * c.frames_processed);
         assert_eq!(sink.0.len() as u64, c.frames_processed);
         match mode {
-            Mode::Batch => assert_eq!(c.frames_dropped, 0),
+            RunMode::Batch => assert_eq!(c.frames_dropped, 0),
             _ => assert!(c.frames_dropped > 20, "{c:?}"),
         }
         assert_eq!(r.sets_incomplete, 0, "one camera: every set is complete");
@@ -195,7 +195,7 @@ fn a_slow_consumer_makes_live_capture_drop_and_batch_block() {
 
 #[test]
 fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
-    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut p = Pipeline::new(config(RunMode::Batch));
     let mut src = Fake::new(0..10);
     src.bad = [3, 4].into_iter().collect();
     p.add_camera(Box::new(src), tracker(Duration::ZERO));
@@ -212,7 +212,7 @@ fn bad_frames_reach_the_tracker_and_the_stream_goes_on() {
     assert_eq!(sink.0[9].len(), 2);
 
     // A source that cannot tell a bad frame's id: the pipeline numbers it after the last one.
-    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut p = Pipeline::new(config(RunMode::Batch));
     let mut src = Fake::new(0..10);
     src.bad = [0, 6].into_iter().collect();
     src.hide_bad_ids = true;
@@ -233,7 +233,7 @@ fn stop_ends_cleanly_and_loses_no_rows() {
     let dir = std::env::temp_dir().join(format!("rodtrack-io-runtime-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("stop.csv");
-    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut p = Pipeline::new(config(RunMode::Batch));
     let mut a = Fake::new(0..);
     a.delay = Duration::from_millis(1);
     let mut b = Fake::new(0..);
@@ -275,7 +275,7 @@ fn stop_ends_cleanly_and_loses_no_rows() {
 #[test]
 fn paced_mode_follows_the_timestamps() {
     for (speed, min_ms) in [(1.0, 90u64), (2.0, 45)] {
-        let mut p = Pipeline::new(config(Mode::Paced { speed }));
+        let mut p = Pipeline::new(config(RunMode::Paced { speed }));
         p.add_camera(Box::new(Fake::new(0..20)), tracker(Duration::ZERO));
         let mut sink = Writes::default();
         let r = p.run(&mut sink).unwrap();
@@ -288,7 +288,7 @@ fn paced_mode_follows_the_timestamps() {
         assert!(r.elapsed < Duration::from_millis(min_ms * 4 + 200));
         assert_eq!(r.cameras[0].frames_processed, 20);
     }
-    let bad = Pipeline::new(config(Mode::Paced { speed: 0.0 }));
+    let bad = Pipeline::new(config(RunMode::Paced { speed: 0.0 }));
     assert!(
         bad.run(&mut Writes::default()).is_err(),
         "no cameras / bad speed"
@@ -297,7 +297,7 @@ fn paced_mode_follows_the_timestamps() {
 
 #[test]
 fn groups_by_timestamp_window() {
-    let mut cfg = config(Mode::Batch);
+    let mut cfg = config(RunMode::Batch);
     cfg.grouping = Grouping::Timestamp {
         window_ns: 1_000_000,
     };
@@ -322,7 +322,7 @@ fn groups_by_timestamp_window() {
 fn a_panicking_tracker_ends_its_camera_but_rows_are_kept() {
     for (handoff, direct) in [(Handoff::Queue, false), (Handoff::Inline, true)] {
         let mut p = Pipeline::new(PipelineConfig {
-            mode: Mode::Batch,
+            mode: RunMode::Batch,
             handoff,
             ..Default::default()
         });
@@ -376,7 +376,7 @@ fn two_image_folders_through_the_pipeline_to_csv() {
         fps: Some(100.0),
         size: None,
     };
-    let mut p = Pipeline::new(config(Mode::Batch));
+    let mut p = Pipeline::new(config(RunMode::Batch));
     for cam in ["cam0", "cam1"] {
         let src = factory
             .open(&dir.join(cam).display().to_string(), &opts)

@@ -30,8 +30,8 @@ use crate::SdkError;
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_core::{CameraFilter, CameraPipeline, Mode, SetFusion};
 use rodtrack_io::runtime::{
-    Handoff, LatencyHistogram, LatencySummary, Mode as RunMode, Pipeline, PipelineConfig,
-    PipelineCounters, PipelineReport, WriteMode,
+    Handoff, LatencyHistogram, LatencySummary, Pipeline, PipelineConfig, PipelineCounters,
+    PipelineReport, RunMode, WriteMode,
 };
 use rodtrack_io::source::{OpenOptions, SourceInfo};
 use rodtrack_io::{FrameBuffer, FrameSource, MeasurementSink, SourceError, SourceFactory};

@@ -48,7 +48,7 @@ pub struct SimCalibration {
     /// The reference frame's pixels.
     pub reference: Vec<u8>,
     /// The reference frame's layout.
-    pub meta: crate::FrameMeta,
+    pub meta: crate::RenderInfo,
     /// The camera's calibration.
     pub calibration: rodtrack_core::calib::CameraCalibration,
 }

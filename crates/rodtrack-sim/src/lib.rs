@@ -17,7 +17,7 @@
 //!   [`Simulation::set_reference_poses`].
 //! - [`Simulation::frame_count`], [`Simulation::frame_bytes`]`(cam)`, [`Simulation::timestamp_s`].
 //! - [`Simulation::render`]`(&mut self, frame_index, camera_index, out: &mut [u8]) ->
-//!   Result<FrameMeta>`: tightly packed (`stride = width * bytes_per_pixel`); the camera's
+//!   Result<RenderInfo>`: tightly packed (`stride = width * bytes_per_pixel`); the camera's
 //!   buffers are reused (no full-frame allocation per frame).
 //! - [`Simulation::render_reference`]`(camera_index, out)`: rods at their reference poses, no
 //!   hands, no ball, no motion; [`Simulation::render_state`]`(camera_index, &WorldState,
@@ -75,6 +75,6 @@ pub use record::{write_recording, RecordOptions, RecordSummary};
 pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
-pub use sim::{CalibOptions, FrameMeta, Simulation, TruthRow};
+pub use sim::{CalibOptions, RenderInfo, Simulation, TruthRow};
 pub use source::{register_sim_source, Playback, SimSource};
 pub use variations::{apply_variation, VARIATION_NAMES};

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 /// What [`Simulation::render`] produced.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct FrameMeta {
+pub struct RenderInfo {
     /// Frame id (shared by all cameras of a frame: hardware-synchronised).
     pub frame_id: u64,
     /// Trigger time, s (shared by all cameras of a frame).
@@ -258,7 +258,7 @@ impl Simulation {
         frame_index: usize,
         camera_index: usize,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let r = self
             .renderers
             .get_mut(camera_index)
@@ -280,7 +280,7 @@ impl Simulation {
         &mut self,
         camera_index: usize,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let r = self
             .renderers
             .get_mut(camera_index)
@@ -317,7 +317,7 @@ impl Simulation {
         rod: usize,
         position_mm: f64,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let mut poses = self.ctx.reference.clone();
         let p = poses.get_mut(rod).ok_or_else(|| {
             SimError::Config(format!(
@@ -328,7 +328,7 @@ impl Simulation {
         p.0 = position_mm;
         let st = WorldState::posed(&poses);
         self.render_state(camera_index, &st, u64::MAX - 1 - rod as u64, out)
-            .map(|m| FrameMeta {
+            .map(|m| RenderInfo {
                 frame_id: 0,
                 timestamp_s: 0.0,
                 ..m
@@ -343,7 +343,7 @@ impl Simulation {
         state: &WorldState,
         frame_id: u64,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         if state.rods.len() != self.ctx.scene.rods.len() {
             return Err(SimError::Config(format!(
                 "state has {} rods, the scene {}",
@@ -508,7 +508,7 @@ impl Ctx {
         frame_index: usize,
         cam: usize,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let c = self.camera(cam)?;
         let need = c.frame_bytes();
         if out.len() < need {
@@ -545,10 +545,10 @@ impl Ctx {
         r: &mut CameraRenderer,
         cam: usize,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let st = WorldState::posed(&self.reference);
         self.render_state(r, cam, &st, u64::MAX, out)
-            .map(|m| FrameMeta {
+            .map(|m| RenderInfo {
                 frame_id: 0,
                 timestamp_s: 0.0,
                 ..m
@@ -562,7 +562,7 @@ impl Ctx {
         st: &WorldState,
         frame_id: u64,
         out: &mut [u8],
-    ) -> Result<FrameMeta, SimError> {
+    ) -> Result<RenderInfo, SimError> {
         let c = self.camera(cam)?;
         let need = c.frame_bytes();
         if out.len() < need {
@@ -593,9 +593,9 @@ impl Ctx {
         Ok(self.meta(cam, frame_id, frame_id as f64 / self.scenario.fps))
     }
 
-    fn meta(&self, cam: usize, frame_id: u64, t: f64) -> FrameMeta {
+    fn meta(&self, cam: usize, frame_id: u64, t: f64) -> RenderInfo {
         let c = &self.cameras[cam];
-        FrameMeta {
+        RenderInfo {
             frame_id,
             timestamp_s: t,
             width: c.camera.width,

@@ -162,7 +162,7 @@ pub struct SimSource {
     /// How long the last frame took to render or copy.
     prep: Duration,
     /// Frames rendered when opened (`prerender`), with their metadata.
-    prerendered: Vec<(crate::FrameMeta, Vec<u8>)>,
+    prerendered: Vec<(crate::RenderInfo, Vec<u8>)>,
 }
 
 /// Most bytes `prerender` may hold per source.
@@ -425,7 +425,7 @@ impl FrameSource for SimSource {
             let (m, data) = &self.prerendered[index % self.prerendered.len()];
             let n = data.len().min(buf.data.len());
             buf.data[..n].copy_from_slice(&data[..n]);
-            crate::FrameMeta {
+            crate::RenderInfo {
                 frame_id: index as u64,
                 timestamp_s: self.sim.timestamp_s(index),
                 ..*m

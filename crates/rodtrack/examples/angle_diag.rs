@@ -140,7 +140,7 @@ fn setup(
 struct OneFrame {
     sim: Simulation,
     buf: Vec<u8>,
-    meta: rodtrack_sim::FrameMeta,
+    meta: rodtrack_sim::RenderInfo,
     truth: rodtrack_core::Measurement,
     calib: rodtrack_core::calib::RodCalibration,
 }

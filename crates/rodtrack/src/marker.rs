@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use rodtrack_core::{Marker, MarkerSpec};
-use rodtrack_io::marker_print::{self, PageSize, PrintOptions};
+use rodtrack_print::{PageSize, PrintOptions};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rodtrack marker`.
@@ -90,15 +90,15 @@ pub fn run(args: Args) -> Result<()> {
             _ => PageSize::A4,
         },
     };
-    let pages = marker_print::layout(&refs, &opts)?;
+    let pages = rodtrack_print::layout(&refs, &opts)?;
     let (w, h) = (pages[0].width_mm, pages[0].height_mm);
     let mut written = Vec::new();
     if is_pdf {
-        let bytes = marker_print::pdf(&refs, &opts)?;
+        let bytes = rodtrack_print::pdf(&refs, &opts)?;
         write(&args.out, &bytes)?;
         written.push(args.out.clone());
     } else {
-        for (i, doc) in marker_print::svg_pages(&refs, &opts)?.iter().enumerate() {
+        for (i, doc) in rodtrack_print::svg_pages(&refs, &opts)?.iter().enumerate() {
             let path = if i == 0 {
                 args.out.clone()
             } else {
@@ -115,7 +115,7 @@ pub fn run(args: Args) -> Result<()> {
         names.join(", "),
         rods.join(", "),
         pages.len(),
-        marker_print::PRINT_AT_100
+        rodtrack_print::PRINT_AT_100
     );
     Ok(())
 }

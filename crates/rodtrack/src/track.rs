@@ -295,7 +295,7 @@ impl Hooks for CliHooks {
 
 #[cfg(test)]
 mod tests {
-    use rodtrack_io::runtime::{Handoff, Mode as RunMode, WriteMode};
+    use rodtrack_io::runtime::{Handoff, RunMode, WriteMode};
     use rodtrack_sdk::pipeline_config;
 
     #[test]

@@ -175,7 +175,7 @@ fn per_camera_writes_come_first_and_the_fusion_after_the_set() {
 #[test]
 fn inline_live_counts_what_the_source_skipped_and_drops_nothing() {
     let config = PipelineConfig {
-        mode: Mode::Live,
+        mode: RunMode::Live,
         handoff: Handoff::Inline,
         write: WriteMode::PerCamera,
         ..Default::default()
@@ -201,7 +201,7 @@ fn inline_live_counts_what_the_source_skipped_and_drops_nothing() {
 #[test]
 fn a_stalled_camera_does_not_hold_back_the_others_rows() {
     let config = PipelineConfig {
-        mode: Mode::Live,
+        mode: RunMode::Live,
         handoff: Handoff::Inline,
         write: WriteMode::PerCamera,
         group_timeout: Duration::from_millis(30),
@@ -239,7 +239,7 @@ fn a_stalled_camera_does_not_hold_back_the_others_rows() {
 fn run_direct_stops_cleanly_and_returns_the_flushed_sink() {
     for handoff in [Handoff::Queue, Handoff::Inline] {
         let config = PipelineConfig {
-            mode: Mode::Live,
+            mode: RunMode::Live,
             handoff,
             ..Default::default()
         };

@@ -83,7 +83,7 @@ const MAX_DECODED_BYTES_PER_PIXEL: usize = 8;
 const FILE_MARGIN_BYTES: u64 = 1 << 20;
 
 /// The longest image file read for a frame of `pixels` pixels: its largest uncompressed
-/// layout (RGBA 16-bit) plus [`FILE_MARGIN_BYTES`]. Longer files are refused unread.
+/// layout (RGBA 16-bit) plus `FILE_MARGIN_BYTES` (1 MiB). Longer files are refused unread.
 pub fn max_image_file_bytes(pixels: usize) -> u64 {
     (pixels as u64)
         .saturating_mul(MAX_DECODED_BYTES_PER_PIXEL as u64)

@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use rodtrack_core::marker::{gray_decode, Marker, MarkerSpec};
-use rodtrack_io::marker_print::{
+use rodtrack_print::{
     circumference_mm, layout, marker_geometry, pdf, svg, svg_pages, PageSize, Placement,
     PrintError, PrintOptions, RectKind, Shape, PRINT_AT_100, WRAP_RULE,
 };
