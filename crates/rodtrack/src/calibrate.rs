@@ -155,8 +155,6 @@ pub fn print_report(cam: &CameraCalibration) {
 
 // ---- automatic calibration (`--auto`) ----
 
-/// Frames analysed by default per camera.
-
 /// `MIN,MAX` in mm.
 fn parse_travel(s: &str) -> Result<[f64; 2], String> {
     let (a, b) = s
