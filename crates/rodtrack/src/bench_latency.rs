@@ -30,6 +30,7 @@
 //! `--prerender 0` every frame is rendered in its capture thread, which on a small machine
 //! competes with tracking for the CPU.
 
+use crate::choices::{HandoffArg, WriteArg};
 use crate::track::{install_ctrlc, CliHooks};
 use anyhow::{Context, Result};
 use rodtrack_core::calib::CameraCalibration;
@@ -81,12 +82,12 @@ pub struct Args {
     pub udp_blocking_receiver: bool,
     /// Who processes a camera's frames: `inline` (the thread that read it, as `track` runs
     /// live sources) or `queue` (a processing thread fed by a capture queue).
-    #[arg(long, default_value = "inline", value_parser = ["inline", "queue"])]
-    pub handoff: String,
+    #[arg(long, value_enum, default_value_t = HandoffArg::Inline)]
+    pub handoff: HandoffArg,
     /// When rows are written: `camera` (each camera's rows as soon as measured, as `track`
     /// runs live sources) or `set` (one write per frame set, after the fusion).
-    #[arg(long, default_value = "camera", value_parser = ["camera", "set"])]
-    pub write: String,
+    #[arg(long, value_enum, default_value_t = WriteArg::Camera)]
+    pub write: WriteArg,
     /// Poll a queue or the output lock this long before blocking on it (us; 0: block at once;
     /// default: `track`'s for live sources, see `PipelineConfig::spin`).
     #[arg(long)]
@@ -118,14 +119,8 @@ fn calibrate_sim_camera(
 /// The pipeline settings of the arguments: `track`'s for live sources, with the overrides.
 fn config(args: &Args) -> PipelineConfig {
     let mut c = pipeline_config(true);
-    c.handoff = match args.handoff.as_str() {
-        "queue" => Handoff::Queue,
-        _ => Handoff::Inline,
-    };
-    c.write = match args.write.as_str() {
-        "set" => WriteMode::Set,
-        _ => WriteMode::PerCamera,
-    };
+    c.handoff = args.handoff.into();
+    c.write = args.write.into();
     if let Some(us) = args.spin_us {
         c.spin = Duration::from_micros(us);
     }

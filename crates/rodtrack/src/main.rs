@@ -3,6 +3,7 @@
 mod bench_frames;
 mod bench_latency;
 mod calibrate;
+mod choices;
 mod console;
 mod console_hooks;
 mod demo;

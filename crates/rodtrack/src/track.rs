@@ -2,14 +2,15 @@
 //! progress bar (recordings) or live statistics (live sources) on stderr, and optionally the
 //! web console.
 
+use crate::choices::{FormatArg, ModeArg};
 use crate::console_hooks::ConsoleHooks;
 use anyhow::{bail, Context, Result};
 use rodtrack_console::{Console, ConsoleHandle};
 use rodtrack_core::Measurement;
 use rodtrack_io::{FrameSource, MeasurementSink};
 use rodtrack_sdk::{
-    check_out_is_not_an_input, is_broken_pipe, mode_from_name, open_sinks, read_calibration, Hooks,
-    Progress, RowFormat, Session, SessionOptions,
+    check_out_is_not_an_input, is_broken_pipe, open_sinks, read_calibration, Hooks, Progress,
+    RowFormat, Session, SessionOptions,
 };
 use std::io::Write;
 use std::path::PathBuf;
@@ -31,14 +32,14 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// Output format; by default from the file extension (`.jsonl` is JSON Lines, else CSV).
-    #[arg(long, value_parser = ["csv", "jsonl"])]
-    pub format: Option<String>,
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
     /// Also stream every frame set over UDP to this address (e.g. 127.0.0.1:9870).
     #[arg(long)]
     pub udp: Option<String>,
     /// Algorithm: `enhanced` (default) or `paper` (the published method, as a baseline).
-    #[arg(long, default_value = "enhanced", value_parser = rodtrack_sdk::MODE_NAMES)]
-    pub mode: String,
+    #[arg(long, value_enum, default_value_t = ModeArg::Enhanced)]
+    pub mode: ModeArg,
     /// Write each camera's raw measurements, without the temporal filter and fusion.
     #[arg(long)]
     pub raw: bool,
@@ -54,7 +55,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     check_out_is_not_an_input(&args.out, &[&args.calib])?;
     let cal = read_calibration(&args.calib)?;
-    let mode = mode_from_name(&args.mode)?;
+    let mode = args.mode.into();
     if args.inputs.len() != cal.cameras.len() {
         bail!(
             "{} has {} camera(s) but {} --input given: give one input per camera, in order",
@@ -81,11 +82,9 @@ pub fn run(args: Args) -> Result<()> {
     for cam in session.cameras() {
         print_source_warnings(&cam.label, &*cam.source);
     }
-    let format = match args.format.as_deref() {
-        Some("jsonl") => RowFormat::Jsonl,
-        Some(_) => RowFormat::Csv,
-        None => RowFormat::from_path(&args.out),
-    };
+    let format = args
+        .format
+        .map_or_else(|| RowFormat::from_path(&args.out), RowFormat::from);
     let sink = open_sinks(&args.out, format, args.udp.as_deref())?;
     let stop = session.stop_flag();
     let sink = ConsoleRows {
