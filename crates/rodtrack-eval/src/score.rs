@@ -239,3 +239,65 @@ pub fn format_table(table: &BTreeMap<Option<u32>, Stats>) -> String {
     );
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(frame: u64, rod: u32, pos: f64, ang: f64, status: Status) -> Measurement {
+        let mut m = Measurement::empty(
+            frame,
+            frame as f64 / 200.0,
+            CameraId::Camera(0),
+            rod,
+            status,
+        );
+        m.position_mm = pos;
+        m.angle_rad = ang;
+        m.angle_unwrapped_rad = ang;
+        m
+    }
+
+    #[test]
+    fn wraps_angles_into_minus_pi_pi() {
+        assert!((wrap_angle(TAU + 0.25) - 0.25).abs() < 1e-12);
+        assert!((wrap_angle(-0.25) + 0.25).abs() < 1e-12);
+        assert!((wrap_angle(std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn scores_errors_coverage_and_false_ok() {
+        let truth = vec![
+            (row(0, 1, 10.0, 0.1, Status::Ok), Some(true)),
+            (row(1, 1, 10.0, 0.1, Status::Ok), Some(true)),
+            (row(2, 1, 10.0, 0.1, Status::Ok), Some(false)),
+            (row(3, 1, 10.0, 0.1, Status::Ok), Some(true)),
+        ];
+        let measured = vec![
+            (row(0, 1, 10.5, 0.1 + TAU, Status::Ok), None),
+            (row(1, 1, 9.5, 0.1, Status::Ok), None),
+            // Not visible, reported ok and wrong.
+            (row(2, 1, 30.0, 0.1, Status::Ok), None),
+            (row(3, 1, 0.0, 0.0, Status::Occluded), None),
+        ];
+        let t = score(&truth, &measured);
+        let all = &t[&None];
+        assert_eq!(
+            (all.n, all.visible, all.false_ok, all.wrong_ok),
+            (2, 3, 1, 1)
+        );
+        assert!(all.pos_mean_mm.abs() < 1e-12 && (all.pos_std_mm - 0.5).abs() < 1e-12);
+        assert!(all.ang_max_rad < 1e-9 && all.gross == 0);
+        assert!((all.coverage - 2.0 / 3.0).abs() < 1e-12);
+        // Frame 0's unwrapped angle is a whole turn ahead: the turn count is fixed there, so
+        // the ok rows after it (frames 1 and 2, visible or not) have slipped a turn.
+        assert_eq!(all.turn_slips, 2);
+        let text = format_table(&t);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4, "{text}");
+        assert!(lines[0].trim_start().starts_with("rod"));
+        assert!(lines[1].trim_start().starts_with("1 "));
+        assert!(lines[2].trim_start().starts_with("all "));
+        assert!(lines[3].starts_with("(mm and rad"));
+    }
+}
