@@ -1,16 +1,14 @@
 //! `rodtrack console`: the web console, on the built-in simulator (`--demo`) or for
 //! calibrating real cameras from their calibration inputs (`--inputs cam0.json ...`).
 
-use crate::console_hooks::ConsoleHooks;
+use crate::console_hooks::{ConsoleHooks, LiveHooks};
 use crate::track::ConsoleRows;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{CalibrationContext, CameraSetup, Console, ConsoleOptions, OwnedFrame};
-use rodtrack_core::{CameraPipeline, FrameView, Measurement, Mode, PixelFormat};
+use rodtrack_core::{CameraPipeline, FrameView, Mode, PixelFormat};
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
-use rodtrack_sdk::{
-    print_warning, read_inputs, Hooks, Progress, Session, SessionCamera, SessionOptions,
-};
+use rodtrack_sdk::{print_warning, read_inputs, Session, SessionCamera, SessionOptions};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -228,28 +226,4 @@ fn run_demo(args: &Args) -> Result<()> {
         o.total_ns as f64 / 1e6
     );
     Ok(())
-}
-
-/// The console's live view and status line, from a session's hooks.
-struct LiveHooks(ConsoleHooks);
-
-impl Hooks for LiveHooks {
-    fn measured(
-        &self,
-        camera: u32,
-        meta: &rodtrack_io::FrameMeta,
-        rows: &[Measurement],
-        pipe: &CameraPipeline,
-    ) {
-        self.0.measured(camera, meta, rows, pipe);
-    }
-    fn uses_frames(&self) -> bool {
-        true
-    }
-    fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
-        self.0.frame(camera, buf);
-    }
-    fn progress(&self, p: &Progress) {
-        self.0.publish_progress(p);
-    }
 }

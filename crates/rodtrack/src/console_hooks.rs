@@ -4,7 +4,7 @@
 use rodtrack_console::{CameraOverlays, ConsoleHandle, RodOverlay};
 use rodtrack_core::{CameraPipeline, Measurement};
 use rodtrack_io::{FrameBuffer, FrameMeta};
-use rodtrack_sdk::SessionCamera;
+use rodtrack_sdk::{Hooks, Progress, SessionCamera};
 use std::sync::{Arc, Mutex};
 
 /// A live frame's overlays between a camera's tracker and its frame hook: made for the frame
@@ -44,11 +44,6 @@ impl ConsoleHooks {
                 })
                 .collect(),
         }
-    }
-
-    /// Shows rows in the console's plots.
-    pub fn publish_rows(&self, rows: &[Measurement]) {
-        self.console.publish_rows(rows);
     }
 
     /// Shows a session's counters in the console's status line.
@@ -116,5 +111,29 @@ impl ConsoleHooks {
             m.timestamp_ns.as_secs_f64(),
             &l.overlays,
         );
+    }
+}
+
+/// The console's live view and status line, from a session's hooks.
+pub struct LiveHooks(pub ConsoleHooks);
+
+impl Hooks for LiveHooks {
+    fn measured(
+        &self,
+        camera: u32,
+        meta: &rodtrack_io::FrameMeta,
+        rows: &[Measurement],
+        pipe: &CameraPipeline,
+    ) {
+        self.0.measured(camera, meta, rows, pipe);
+    }
+    fn uses_frames(&self) -> bool {
+        true
+    }
+    fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        self.0.frame(camera, buf);
+    }
+    fn progress(&self, p: &Progress) {
+        self.0.publish_progress(p);
     }
 }

@@ -1,8 +1,11 @@
 //! `rodtrack demo`: the whole job on the built-in simulator, with nothing to set up.
 
-use crate::score::{print_table, score};
+use crate::console_hooks::{ConsoleHooks, LiveHooks};
 use anyhow::Result;
 use rodtrack_core::{CameraId, Measurement, Status};
+use rodtrack_eval::score::{format_table, score, wrap_angle};
+use rodtrack_eval::sim_run;
+use rodtrack_sdk::Hooks;
 use std::io::{IsTerminal, Write};
 use std::sync::Arc;
 use std::time::Instant;
@@ -65,7 +68,11 @@ pub fn run(args: Args) -> Result<()> {
     let n = sim.frame_count();
     let t_loop = Instant::now();
     let mut last_draw: Option<Instant> = None;
-    let on_rows: crate::sim_run::RowsCallback = Box::new(move |rows, progress| {
+    let publish = console.clone();
+    let on_rows: sim_run::RowsCallback = Box::new(move |rows, progress| {
+        if let Some(c) = &publish {
+            c.publish_rows(rows);
+        }
         let Some(last) = rows.iter().map(|m| m.frame).max() else {
             return;
         };
@@ -87,13 +94,19 @@ pub fn run(args: Args) -> Result<()> {
         let us = progress.tracker_time.as_secs_f64() * 1e6 / progress.measured.max(1) as f64;
         draw_table(&shown, f, n, us, t_loop.elapsed().as_secs_f64(), tty);
     });
-    let (rows, report) = crate::sim_run::run_sim(
+    // The console's live view and status line from the session's hooks.
+    let hooks = console.clone().map(|c| -> sim_run::HooksFactory {
+        Box::new(move |cameras| {
+            Arc::new(LiveHooks(ConsoleHooks::new(c, cameras))) as Arc<dyn Hooks>
+        })
+    });
+    let (rows, report) = sim_run::run_sim(
         &cals,
-        crate::sim_run::SimRun {
+        sim_run::SimRun {
             sim: &sim,
             every: 1,
             paper: true,
-            console: console.clone(),
+            hooks,
             on_rows: Some(on_rows),
         },
     )?;
@@ -122,15 +135,18 @@ pub fn run(args: Args) -> Result<()> {
         "simulated and tracked {n} frames x {ncam} cameras in {loop_s:.1} s (the simulator renders on the CPU); tracking: median {p50_us:.1} us per camera frame (all rods)"
     );
     println!("\naccuracy against ground truth, rodtrack (enhanced mode), each camera's raw measurements:");
-    print_table(&score(&truth, &with_none(&rows.raw)));
+    print!("{}", format_table(&score(&truth, &with_none(&rows.raw))));
     println!("\nrodtrack, each camera through the temporal filter:");
-    print_table(&score(&truth, &with_none(&rows.filtered)));
+    print!(
+        "{}",
+        format_table(&score(&truth, &with_none(&rows.filtered)))
+    );
     if ncam > 1 {
         println!("\nrodtrack, cameras fused and filtered (one row per rod):");
-        print_table(&score(&truth, &with_none(&rows.fused)));
+        print!("{}", format_table(&score(&truth, &with_none(&rows.fused))));
     }
     println!("\nthe paper's algorithm on the same frames (paper mode):");
-    print_table(&score(&truth, &with_none(&rows.paper)));
+    print!("{}", format_table(&score(&truth, &with_none(&rows.paper))));
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
     if let Some(con) = console {
         println!("web console still at {}: press Ctrl-C to quit", con.url());
@@ -170,7 +186,7 @@ fn write_errors(
                 t.position_mm,
                 t.angle_rad,
                 r.position_mm - t.position_mm,
-                crate::score::wrap_angle(r.angle_rad - t.angle_rad)
+                wrap_angle(r.angle_rad - t.angle_rad)
             )?;
         }
     }

@@ -9,9 +9,7 @@ mod console_hooks;
 mod demo;
 mod evaluate;
 mod marker;
-mod plots;
 mod score;
-mod sim_run;
 mod simulate;
 mod track;
 

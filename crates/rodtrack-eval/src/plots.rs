@@ -4,7 +4,7 @@
 //! A [`Figure`] is a stack of [`Panel`]s sharing the figure's width; every panel holds line
 //! [`Series`]. A NaN in a series breaks its line (a gap where the rod was not measured).
 
-use anyhow::{anyhow, Context, Result};
+use crate::{EvalError, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
@@ -129,8 +129,16 @@ fn runs(points: &[(f64, f64)]) -> Vec<&[(f64, f64)]> {
         .collect()
 }
 
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow!("plotting: {e:?}")
+fn err<E: std::fmt::Debug>(e: E) -> EvalError {
+    EvalError::Failed(format!("plotting: {e:?}"))
+}
+
+/// `e` in the context `what` (`drawing fig13.png`).
+fn context(what: String) -> impl FnOnce(EvalError) -> EvalError {
+    move |e| EvalError::Plot {
+        context: what,
+        source: Box::new(e),
+    }
 }
 
 fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> Result<()>
@@ -226,13 +234,14 @@ pub fn write_figure(fig: &Figure, dir: &Path, stem: &str) -> Result<(PathBuf, Pa
     let mut rgb = vec![255u8; w as usize * h as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        draw_figure(root, fig).with_context(|| format!("drawing {}", png.display()))?;
+        draw_figure(root, fig).map_err(context(format!("drawing {}", png.display())))?;
     }
     image::save_buffer(&png, &rgb, w, h, image::ExtendedColorType::Rgb8)
-        .with_context(|| format!("writing {}", png.display()))?;
+        .map_err(|e| EvalError::Failed(e.to_string()))
+        .map_err(context(format!("writing {}", png.display())))?;
     {
         let root = SVGBackend::new(&svg, (w, h)).into_drawing_area();
-        draw_figure(root, fig).with_context(|| format!("writing {}", svg.display()))?;
+        draw_figure(root, fig).map_err(context(format!("writing {}", svg.display())))?;
     }
     Ok((png, svg))
 }

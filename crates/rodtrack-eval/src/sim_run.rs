@@ -2,9 +2,7 @@
 //! them: the rows sorted by kind (each camera's raw rows, filtered rows, fused rows), and the
 //! paper's algorithm on the same frames alongside when asked.
 
-use crate::console_hooks::ConsoleHooks;
-use anyhow::Result;
-use rodtrack_console::ConsoleHandle;
+use crate::{EvalError, Result};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode};
 use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
@@ -20,12 +18,17 @@ pub struct SimRun<'a> {
     pub every: usize,
     /// Also the paper's algorithm on the same frames.
     pub paper: bool,
-    /// The console to show the frames and rows in.
-    pub console: Option<Arc<ConsoleHandle>>,
+    /// Makes extra hooks for the session's cameras (a web console, ...): [`Hooks::measured`],
+    /// [`Hooks::frame`] (after the paper's tracker: the extra hooks may take the frame's
+    /// buffer) and [`Hooks::progress`] are passed on to them.
+    pub hooks: Option<HooksFactory>,
     /// Called with every write of filtered rows (each camera's, then the fused ones) and the
     /// latest progress.
     pub on_rows: Option<RowsCallback>,
 }
+
+/// See [`SimRun::hooks`]: given the session's cameras before it starts.
+pub type HooksFactory = Box<dyn FnOnce(&[SessionCamera]) -> Arc<dyn Hooks>>;
 
 /// See [`SimRun::on_rows`].
 pub type RowsCallback = Box<dyn FnMut(&[Measurement], &Progress) + Send>;
@@ -49,7 +52,7 @@ pub struct SimRows {
 struct Hooked {
     rows: Mutex<SimRows>,
     paper: Vec<Mutex<Option<CameraPipeline>>>,
-    console: Option<ConsoleHooks>,
+    extra: Option<Arc<dyn Hooks>>,
     progress: Mutex<Progress>,
 }
 
@@ -58,12 +61,12 @@ impl Hooks for Hooked {
         if let Ok(mut r) = self.rows.lock() {
             r.raw.extend_from_slice(rows);
         }
-        if let Some(c) = &self.console {
-            c.measured(camera, meta, rows, pipe);
+        if let Some(h) = &self.extra {
+            h.measured(camera, meta, rows, pipe);
         }
     }
     fn uses_frames(&self) -> bool {
-        self.console.is_some()
+        self.extra.as_ref().is_some_and(|h| h.uses_frames())
             || self
                 .paper
                 .iter()
@@ -85,14 +88,14 @@ impl Hooks for Hooked {
                 }
             }
         }
-        // Last: the console may take the frame's buffer.
-        if let Some(c) = &self.console {
-            c.frame(camera, buf);
+        // Last: the extra hooks may take the frame's buffer.
+        if let Some(h) = &self.extra {
+            h.frame(camera, buf);
         }
     }
     fn progress(&self, p: &Progress) {
-        if let Some(c) = &self.console {
-            c.publish_progress(p);
+        if let Some(h) = &self.extra {
+            h.progress(p);
         }
         if let Ok(mut last) = self.progress.lock() {
             *last = p.clone();
@@ -100,7 +103,7 @@ impl Hooks for Hooked {
     }
 }
 
-/// The session's sink: the filtered and fused rows kept, shown and passed on.
+/// The session's sink: the filtered and fused rows kept and passed on.
 struct Collect {
     hooked: Arc<Hooked>,
     on_rows: Option<RowsCallback>,
@@ -116,9 +119,6 @@ impl MeasurementSink for Collect {
                     r.filtered.push(*m);
                 }
             }
-        }
-        if let Some(c) = &self.hooked.console {
-            c.publish_rows(rows);
         }
         if let Some(f) = self.on_rows.as_mut() {
             let p = self
@@ -167,7 +167,7 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
                 )
             })
             .collect(),
-        console: run.console.clone().map(|c| ConsoleHooks::new(c, &cameras)),
+        extra: run.hooks.map(|make| make(&cameras)),
         progress: Mutex::new(Progress::default()),
     });
     let options = SessionOptions {
@@ -188,7 +188,7 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
             &mut *h
                 .rows
                 .lock()
-                .map_err(|_| anyhow::anyhow!("rows lock poisoned"))?,
+                .map_err(|_| EvalError::Failed("rows lock poisoned".into()))?,
         ),
     };
     Ok((rows, report))
