@@ -182,7 +182,7 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
         .with_hooks(hooked.clone())
         .run(sink)?;
     drop(sink);
-    let rows = match Arc::try_unwrap(hooked) {
+    let mut rows = match Arc::try_unwrap(hooked) {
         Ok(h) => h.rows.into_inner().unwrap_or_default(),
         Err(h) => std::mem::take(
             &mut *h
@@ -191,5 +191,22 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
                 .map_err(|_| EvalError::Failed("rows lock poisoned".into()))?,
         ),
     };
+    // The cameras' threads append in whatever order they run: sorted, the rows (and every
+    // sum over them) are the same from run to run.
+    let key = |m: &Measurement| {
+        let camera = match m.camera {
+            CameraId::Camera(c) => c,
+            CameraId::Fused => u32::MAX,
+        };
+        (m.frame, camera, m.rod)
+    };
+    for v in [
+        &mut rows.raw,
+        &mut rows.filtered,
+        &mut rows.fused,
+        &mut rows.paper,
+    ] {
+        v.sort_by_key(key);
+    }
     Ok((rows, report))
 }
