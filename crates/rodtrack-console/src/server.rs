@@ -18,7 +18,7 @@
 //! | `POST /api/calibrate` | calibrate every rod of every camera with a frozen frame |
 //! | `POST /api/save` | write the calibration file (TOML) and the inputs beside it |
 //!
-//! Every request passes [`crate::guard`]'s checks first (Host, Origin, session token).
+//! Every request passes `guard`'s checks first (Host, Origin, session token).
 //!
 //! A binary frame message is `[u32 LE n][n bytes of JSON header][pixels]`; the header holds
 //! `camera, frame_id, timestamp_s, width, height` (full resolution), `pw, ph, channels, factor`

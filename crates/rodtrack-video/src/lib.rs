@@ -7,11 +7,11 @@
 //! plain `cargo test --workspace` works on a fresh machine.
 //!
 //! Layout:
-//! - [`VideoSource`] (module `source`): a [`rodtrack_io::FrameSource`] over one video stream
+//! - `VideoSource` (module `source`): a [`rodtrack_io::FrameSource`] over one video stream
 //!   (demux, decode, convert into the caller's pooled [`rodtrack_io::FrameBuffer`]);
 //! - module `convert`: plain-Rust conversions from decoded planes (padded rows, any stride)
 //!   to rodtrack's packed pixel formats, with no FFmpeg in them;
-//! - [`register`] / [`open_input`]: the `video` scheme for [`rodtrack_io::SourceFactory`].
+//! - `register` / `open_input`: the `video` scheme for [`rodtrack_io::SourceFactory`].
 //!
 //! What is decoded: any codec FFmpeg has (FFV1, H.264, rawvideo, ...). Grey streams give
 //! `mono8` (or a Bayer format stored as grey, chosen by the `format` option, as for image

@@ -6,16 +6,16 @@
 //!    the frames it analyses are decoded: every `--every`-th, by default about 150 of them);
 //! 2. finds every marker in the reference frame (`--reference-frame`, default 0, where every
 //!    rod is at its reference pose, 0 mm and 0 rad): a full scan of the frame in both
-//!    orientations ([`find_markers`]); the rods, in image order, get the ids of `--rods`;
+//!    orientations (`find_markers`); the rods, in image order, get the ids of `--rods`;
 //! 3. follows each rod through the analysed frames, forward and backward from the reference,
 //!    with a scan of the few image lines around its last detection at scales near its last one
-//!    ([`find_markers_in`], about 10x faster than a full scan); the detections are its path
-//!    points ([`path_points_from_sweep`]), those of a rod at rest merged into one;
+//!    (`find_markers_in`, about 10x faster than a full scan); the detections are its path
+//!    points (`path_points_from_sweep`), those of a rod at rest merged into one;
 //! 4. measures each rod's travel from its detections unless `--travel-mm` gives it;
 //! 5. writes the calibration inputs it derived (`--save-inputs`, by default
 //!    `<out>.<camera>.json`, with the reference frame beside it as `<inputs>_ref/000000.png`),
 //!    so that an operator can inspect or edit them and rerun `calibrate --inputs`, which then
-//!    gives the same calibration; then calibrates every rod from them ([`calibrate_rod`]),
+//!    gives the same calibration; then calibrates every rod from them (`calibrate_rod`),
 //!    prints the residuals and warns (stderr) about badly spread path points and doubtful
 //!    references.
 
