@@ -136,16 +136,14 @@ impl MeasurementSink for Collect {
     }
 }
 
-/// Runs the simulated cameras calibrated as `cals` through a session (enhanced mode, the
-/// temporal filter and the fusion); returns the rows and the session's report.
-pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, RunReport)> {
-    let sources = rodtrack_sim::SimSource::for_simulation(
-        run.sim,
-        rodtrack_sim::Playback {
-            every: run.every,
-            ..Default::default()
-        },
-    )?;
+/// The cameras of `sim`, calibrated as `cals`, as session cameras (enhanced mode) whose sources
+/// deliver the frames as `playback` says.
+pub fn sim_cameras(
+    sim: &rodtrack_sim::Simulation,
+    cals: &[CameraCalibration],
+    playback: rodtrack_sim::Playback,
+) -> Result<Vec<SessionCamera>> {
+    let sources = rodtrack_sim::SimSource::for_simulation(sim, playback)?;
     let mut cameras = Vec::new();
     for (cal, source) in cals.iter().zip(sources) {
         cameras.push(SessionCamera {
@@ -154,6 +152,17 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
             pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
         });
     }
+    Ok(cameras)
+}
+
+/// Runs the simulated cameras calibrated as `cals` through a session (enhanced mode, the
+/// temporal filter and the fusion); returns the rows and the session's report.
+pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, RunReport)> {
+    let playback = rodtrack_sim::Playback {
+        every: run.every,
+        ..Default::default()
+    };
+    let cameras = sim_cameras(run.sim, cals, playback)?;
     let hooked = Arc::new(Hooked {
         rows: Mutex::new(SimRows::default()),
         // The paper's mode needs its per-rod parameters; a camera without them gives no rows.

@@ -5,10 +5,10 @@ use crate::console_hooks::{ConsoleHooks, LiveHooks};
 use crate::track::ConsoleRows;
 use anyhow::{anyhow, bail, Context, Result};
 use rodtrack_console::{CalibrationContext, CameraSetup, Console, ConsoleOptions, OwnedFrame};
-use rodtrack_core::{CameraPipeline, FrameView, Mode, PixelFormat};
+use rodtrack_core::{FrameView, PixelFormat};
 use rodtrack_io::source::{decode_image_file, list_image_files};
 use rodtrack_io::FrameBuffer;
-use rodtrack_sdk::{print_warning, read_inputs, Session, SessionCamera, SessionOptions};
+use rodtrack_sdk::{print_warning, read_inputs, Session, SessionOptions};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -174,22 +174,12 @@ fn run_demo(args: &Args) -> Result<()> {
     );
     // The scenario in a loop at real time: the simulated cameras through a session, the
     // console fed by its hooks and its sink.
-    let sources = rodtrack_sim::SimSource::for_simulation(
-        &sim,
-        rodtrack_sim::Playback {
-            realtime: true,
-            looping: true,
-            ..Default::default()
-        },
-    )?;
-    let mut cameras = Vec::new();
-    for (cal, source) in cals.iter().zip(sources) {
-        cameras.push(SessionCamera {
-            label: format!("camera {} ({})", cal.index, cal.name),
-            source: Box::new(source),
-            pipe: CameraPipeline::new(cal, Mode::Enhanced)?,
-        });
-    }
+    let playback = rodtrack_sim::Playback {
+        realtime: true,
+        looping: true,
+        ..Default::default()
+    };
+    let cameras = rodtrack_eval::sim_run::sim_cameras(&sim, &cals, playback)?;
     drop(sim);
     let console = Arc::new(console);
     let hooks = LiveHooks(ConsoleHooks::new(console.clone(), &cameras));
