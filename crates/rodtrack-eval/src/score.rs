@@ -72,15 +72,8 @@ impl Stats {
     }
 }
 
-/// Signed angle difference wrapped to (-pi, pi].
-pub fn wrap_angle(d: f64) -> f64 {
-    let w = d.rem_euclid(TAU);
-    if w > std::f64::consts::PI {
-        w - TAU
-    } else {
-        w
-    }
-}
+/// Signed angle difference wrapped to (-pi, pi]: the core's [`wrap_pi_fold`].
+pub use rodtrack_core::angle::wrap_pi_fold as wrap_angle;
 
 /// Reads a measurement file by extension.
 pub fn read_rows(path: &Path) -> Result<Vec<(Measurement, Option<bool>)>> {

@@ -67,6 +67,17 @@ pub struct NoHooks;
 impl Hooks for NoHooks {}
 
 /// The counters of a running session, given to [`Hooks::progress`].
+///
+/// ```
+/// /// Prints frame sets per second.
+/// struct Rate;
+/// impl rodtrack_sdk::Hooks for Rate {
+///     fn progress(&self, p: &rodtrack_sdk::Progress) {
+///         let secs = p.elapsed.as_secs_f64().max(1e-9);
+///         eprintln!("{} sets, {:.0}/s, {} dropped, {} bad", p.sets, p.sets as f64 / secs, p.dropped, p.bad);
+///     }
+/// }
+/// ```
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Progress {
     /// Frame sets written (complete and incomplete).

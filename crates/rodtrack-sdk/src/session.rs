@@ -50,6 +50,13 @@ pub struct SessionCamera {
 }
 
 /// How a session runs.
+///
+/// ```
+/// use rodtrack_sdk::SessionOptions;
+/// // Each camera's raw rows (no temporal filter, no fusion), the first 100 frames.
+/// let raw = SessionOptions { filter: false, max_frames: Some(100), ..SessionOptions::default() };
+/// assert_eq!(raw.mode, rodtrack_core::Mode::Enhanced);
+/// ```
 #[derive(Debug, Clone)]
 pub struct SessionOptions {
     /// The algorithm (`Enhanced`, or `Paper` as the published baseline); it also tunes the
@@ -215,6 +222,24 @@ struct ProcessTimes {
 }
 
 /// What a session did.
+///
+/// ```
+/// use rodtrack_sdk::{Session, SessionCamera, SessionOptions};
+/// // Camera 0 of the simulator, calibrated as an operator would, 3 frames.
+/// let mut sim = rodtrack_sim::build_simulation("exp3", Some(3), 1, false, "default").unwrap();
+/// let cal = rodtrack_sim::calibrate_sim_camera(&mut sim, 0, 1).unwrap().calibration;
+/// let mut sources = rodtrack_sim::SimSource::for_simulation(&sim, Default::default()).unwrap();
+/// let camera = SessionCamera {
+///     label: "camera 0".into(),
+///     source: Box::new(sources.remove(0)),
+///     pipe: rodtrack_core::CameraPipeline::new(&cal, rodtrack_core::Mode::Enhanced).unwrap(),
+/// };
+/// let session = Session::from_cameras(vec![camera], SessionOptions::default());
+/// let (report, sink) = session.run(rodtrack_io::VecSink::default()).unwrap();
+/// assert_eq!(report.pipeline.cameras[0].frames_read, 3);
+/// assert!(!report.all_bad());
+/// assert_eq!(sink.rows.len(), 3 * cal.rods.len());
+/// ```
 #[derive(Debug, Clone)]
 pub struct RunReport {
     /// The pipeline's report: frames read, processed, dropped and bad per camera, frame sets,
