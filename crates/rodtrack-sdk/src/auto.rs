@@ -40,6 +40,14 @@ pub struct AutoConfig {
     pub max_frames: Option<u64>,
     /// Frame rate to write (default: the source's, else 200).
     pub fps: Option<f64>,
+    /// Receives what the calibration notices on the way (a format assumed, progress about
+    /// every 5 s); [`print_note`] prints it on standard error.
+    pub note: fn(&str),
+}
+
+/// Prints a note of the automatic calibration on standard error.
+pub fn print_note(msg: &str) {
+    eprintln!("{msg}");
 }
 
 /// One camera's input, opened.
@@ -79,10 +87,10 @@ pub fn open_sweep(
             .open(input, &OpenOptions::default())
             .with_context(|| format!("camera {index}: input {input}"))?;
         if probe.info().format == PixelFormat::Mono8 {
-            eprintln!(
+            (cfg.note)(&format!(
                 "camera {index}: reading the grey images of {input} as bayer_rggb8 (give \
                  --pixel-format mono8 for a mono camera)"
-            );
+            ));
             format = Some(PixelFormat::BayerRggb8);
         }
     }
@@ -194,10 +202,10 @@ pub fn auto_camera(
     loop {
         if last_report.elapsed().as_secs_f64() > 5.0 {
             last_report = std::time::Instant::now();
-            eprintln!(
+            (cfg.note)(&format!(
                 "{label}: {frames_read}{} frames read",
                 src.total.map(|t| format!("/{t}")).unwrap_or_default()
-            );
+            ));
         }
         if cfg.max_frames.is_some_and(|m| frames_read >= m) {
             break;

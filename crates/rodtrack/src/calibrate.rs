@@ -291,6 +291,7 @@ fn run_auto(args: &Args) -> Result<()> {
         travel_mm: args.travel_mm,
         max_frames: args.max_frames,
         fps: args.fps,
+        note: rodtrack_sdk::auto::print_note,
     };
     let sources = args
         .input
