@@ -195,25 +195,14 @@ pub fn calibrate_camera_file(
     let err = |reason: String| SdkError::file(path, reason);
     rodtrack_core::calib::validate::validate_inputs(inputs, index)
         .map_err(|e| err(format!("calibration inputs {name} are invalid: {e}")))?;
-    let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
-        err(format!(
-            "{name}: field `pixel_format`: unknown format {:?}",
-            inputs.pixel_format
-        ))
-    })?;
-    let dir = path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(&inputs.reference_frames.dir);
-    let files = list_image_files(&dir)
-        .map_err(|e| err(format!("{name}: field `reference_frames.dir`: {e}")))?;
-    if inputs.reference_frames.reference_frame >= files.len() {
+    let folder = ReferenceFolder::open(inputs, path)?;
+    if inputs.reference_frames.reference_frame >= folder.files.len() {
         return Err(err(format!(
             "{name}: camera {index}: field `reference_frames.reference_frame`: frame {} does not \
              exist ({} images in {})",
             inputs.reference_frames.reference_frame,
-            files.len(),
-            dir.display()
+            folder.files.len(),
+            folder.dir.display()
         )));
     }
     // Every frame a rod names: its reference frame and its known poses.
@@ -229,18 +218,7 @@ pub fn calibrate_camera_file(
         if frames.iter().any(|(i, _)| *i == idx) {
             continue;
         }
-        let file = files.get(idx).ok_or_else(|| {
-            err(format!(
-                "{name}: rod {rod}: field `{field}`: frame {idx} does not exist ({} images in {})",
-                files.len(),
-                dir.display()
-            ))
-        })?;
-        let mut buf = FrameBuffer::new();
-        decode_image_file(file, Some(format), &mut buf).map_err(|e| SdkError::Io {
-            context: format!("reference frame {}", file.display()),
-            source: e,
-        })?;
+        let buf = folder.read(idx, &format!("rod {rod}: field `{field}`"))?;
         frames.push((idx, buf));
     }
     let mut views: Vec<(usize, FrameView)> = Vec::new();
@@ -252,6 +230,70 @@ pub fn calibrate_camera_file(
     }
     rodtrack_core::calib::calibrate_camera(inputs, &views, index, DEFAULT_FPS)
         .map_err(|e| SdkError::core(format!("{name}: calibrating camera {index}"), e))
+}
+
+/// The reference frames of a camera's calibration inputs: the images of
+/// `reference_frames.dir` (relative to the inputs file), in reading order, decoded in the
+/// inputs' pixel format.
+#[derive(Debug, Clone)]
+pub struct ReferenceFolder {
+    /// The inputs file, for messages.
+    pub name: String,
+    /// The folder.
+    pub dir: std::path::PathBuf,
+    /// Its image files, in reading order.
+    pub files: Vec<std::path::PathBuf>,
+    /// The inputs' pixel format.
+    pub format: PixelFormat,
+}
+
+impl ReferenceFolder {
+    /// The reference folder of `inputs`, read from `path`; errors name the file and the field.
+    pub fn open(inputs: &CalibrationInputs, path: &Path) -> Result<ReferenceFolder, SdkError> {
+        let name = path.display().to_string();
+        let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
+            SdkError::file(
+                path,
+                format!(
+                    "{name}: field `pixel_format`: unknown format {:?}",
+                    inputs.pixel_format
+                ),
+            )
+        })?;
+        let dir = path
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(&inputs.reference_frames.dir);
+        let files = list_image_files(&dir).map_err(|e| {
+            SdkError::file(path, format!("{name}: field `reference_frames.dir`: {e}"))
+        })?;
+        Ok(ReferenceFolder {
+            name,
+            dir,
+            files,
+            format,
+        })
+    }
+
+    /// Frame `idx` of the folder, decoded; `what` (`rod 3: field `known_poses``) names who
+    /// asked for it in the error when there is no such frame.
+    pub fn read(&self, idx: usize, what: &str) -> Result<FrameBuffer, SdkError> {
+        let file = self.files.get(idx).ok_or_else(|| SdkError::File {
+            path: self.name.clone(),
+            reason: format!(
+                "{}: {what}: frame {idx} does not exist ({} images in {})",
+                self.name,
+                self.files.len(),
+                self.dir.display()
+            ),
+        })?;
+        let mut buf = FrameBuffer::new();
+        decode_image_file(file, Some(self.format), &mut buf).map_err(|e| SdkError::Io {
+            context: format!("reference frame {}", file.display()),
+            source: e,
+        })?;
+        Ok(buf)
+    }
 }
 
 /// Calibrates every camera from its calibration-inputs file, in order (camera `i` from

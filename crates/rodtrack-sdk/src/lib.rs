@@ -36,7 +36,7 @@ pub mod sources;
 
 pub use calibration::{
     calibrate_camera_file, calibrate_files, calibration_file, print_warning, read_calibration,
-    read_inputs, read_opencv_model, write_calibration, DEFAULT_FPS,
+    read_inputs, read_opencv_model, write_calibration, ReferenceFolder, DEFAULT_FPS,
 };
 pub use error::SdkError;
 pub use hooks::{Hooks, NoHooks, Progress};

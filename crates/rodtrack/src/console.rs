@@ -3,11 +3,9 @@
 
 use crate::console_hooks::{ConsoleHooks, LiveHooks};
 use crate::track::ConsoleRows;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use rodtrack_console::{CalibrationContext, CameraSetup, Console, ConsoleOptions, OwnedFrame};
-use rodtrack_core::{FrameView, PixelFormat};
-use rodtrack_io::source::{decode_image_file, list_image_files};
-use rodtrack_io::FrameBuffer;
+use rodtrack_core::FrameView;
 use rodtrack_sdk::{print_warning, read_inputs, Session, SessionOptions};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -96,36 +94,17 @@ fn load_reference(
     inputs: &rodtrack_core::calib::CalibrationInputs,
     path: &Path,
 ) -> Result<OwnedFrame> {
-    let name = path.display();
-    let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
-        anyhow!(
-            "{name}: field `pixel_format`: unknown format {:?}",
-            inputs.pixel_format
-        )
-    })?;
-    let dir = path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(&inputs.reference_frames.dir);
-    let files =
-        list_image_files(&dir).with_context(|| format!("{name}: field `reference_frames.dir`"))?;
+    let folder = rodtrack_sdk::ReferenceFolder::open(inputs, path)?;
     let idx = inputs.reference_frames.reference_frame;
     if let Some(r) = inputs.rods.iter().find(|r| r.reference.frame != idx) {
         eprintln!(
-            "warning: {name}: rod {} refers to frame {}, the console freezes frame {idx} for every rod",
-            r.rod, r.reference.frame
+            "warning: {}: rod {} refers to frame {}, the console freezes frame {idx} for every rod",
+            path.display(),
+            r.rod,
+            r.reference.frame
         );
     }
-    let file = files.get(idx).ok_or_else(|| {
-        anyhow!(
-            "{name}: field `reference_frames.reference_frame`: frame {idx} does not exist ({} images in {})",
-            files.len(),
-            dir.display()
-        )
-    })?;
-    let mut buf = FrameBuffer::new();
-    decode_image_file(file, Some(format), &mut buf)
-        .with_context(|| format!("reference frame {}", file.display()))?;
+    let buf = folder.read(idx, "field `reference_frames.reference_frame`")?;
     let view: FrameView = buf.view()?;
     Ok(OwnedFrame::from_view(&view, idx as u64, 0.0))
 }
