@@ -10,31 +10,35 @@ export CARGO_TERM_COLOR=never
 start=$(date +%s)
 step() { echo; echo "-- python: $* ($(( $(date +%s) - start )) s)"; }
 
+# The repository's target dir (the workspace's), or CARGO_TARGET_DIR's when set.
+target="${CARGO_TARGET_DIR:-$PWD/target}"
+
 step "venv with maturin, pytest, numpy"
-venv=target/ci-python-venv
+venv="$target/ci-python-venv"
 rm -rf "$venv"
 python3 -m venv "$venv"
 "$venv/bin/pip" install -q --disable-pip-version-check maturin pytest numpy
 # PyO3 builds for the venv's interpreter; maturin and pip are the venv's.
-export PATH="$PWD/$venv/bin:$PATH"
-export PYO3_PYTHON="$PWD/$venv/bin/python"
+export PATH="$venv/bin:$PATH"
+export PYO3_PYTHON="$venv/bin/python"
 
 step "clippy (rodtrack-py with the feature python, all targets, -D warnings)"
 cargo clippy -p rodtrack-py --features python --all-targets -- -D warnings
 
 step "the abi3 wheel (release, target/wheels)"
-maturin build --release --manifest-path python/Cargo.toml --out target/wheels
-ls target/wheels/rodtrack-*-abi3-*.whl
+rm -rf "$target/wheels"
+maturin build --release --manifest-path python/Cargo.toml --out "$target/wheels"
+ls "$target"/wheels/rodtrack-*-abi3-*.whl
 
 step "pip install ./python (from source)"
 pip install -q --disable-pip-version-check ./python
 python -c "import rodtrack; print('rodtrack', rodtrack.__version__, 'from', rodtrack.__file__)"
 
 step "pip install the abi3 wheel"
-pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/rodtrack-*-abi3-*.whl
+pip install -q --disable-pip-version-check --force-reinstall --no-deps "$target"/wheels/rodtrack-*-abi3-*.whl
 
 step "pytest python/tests (the rodtrack binary of target/release for the CSV comparisons)"
-RODTRACK_BIN="$PWD/target/release/rodtrack" python -m pytest -q -rs python/tests
+RODTRACK_BIN="$target/release/rodtrack" python -m pytest -q -rs python/tests
 
 step "examples"
 python python/examples/control_loop.py 1 | tail -3
