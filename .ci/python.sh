@@ -28,14 +28,15 @@ cargo clippy -p rodtrack-py --features python --all-targets -- -D warnings
 step "the abi3 wheel (release, target/wheels)"
 rm -rf "$target/wheels"
 maturin build --release --manifest-path python/Cargo.toml --out "$target/wheels"
-ls "$target"/wheels/rodtrack-*-abi3-*.whl
+wheel=$(ls "$target"/wheels/rodtrack-*-abi3-*.whl)
+echo "$wheel"
 
 step "pip install ./python (from source)"
 pip install -q --disable-pip-version-check ./python
 python -c "import rodtrack; print('rodtrack', rodtrack.__version__, 'from', rodtrack.__file__)"
 
 step "pip install the abi3 wheel"
-pip install -q --disable-pip-version-check --force-reinstall --no-deps "$target"/wheels/rodtrack-*-abi3-*.whl
+pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 
 step "pytest python/tests (the rodtrack binary of target/release for the CSV comparisons)"
 RODTRACK_BIN="$target/release/rodtrack" python -m pytest -q -rs python/tests

@@ -171,3 +171,78 @@ impl Drop for Stream {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use rodtrack_core::CameraId;
+    use rodtrack_sdk::SessionOptions;
+    use std::time::Instant;
+
+    /// Both simulated cameras calibrated once (it takes seconds) for every session.
+    fn calibration() -> &'static rodtrack_core::calib::CalibrationFile {
+        static CAL: std::sync::OnceLock<rodtrack_core::calib::CalibrationFile> =
+            std::sync::OnceLock::new();
+        CAL.get_or_init(|| {
+            let mut sim =
+                rodtrack_sim::build_simulation("exp3", Some(2), 1, false, "default").unwrap();
+            let cams = (0..2)
+                .map(|c| {
+                    rodtrack_sim::calibrate_sim_camera(&mut sim, c, 1)
+                        .unwrap()
+                        .calibration
+                })
+                .collect();
+            rodtrack_sdk::calibration_file(cams).unwrap()
+        })
+    }
+
+    fn session(frames: usize) -> Session {
+        let cal = calibration();
+        let inputs: Vec<String> = (0..2)
+            .map(|c| format!("sim://exp3?camera={c}&frames={frames}&seed=1"))
+            .collect();
+        Session::open(cal, &inputs, SessionOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn a_recording_streams_every_set_in_order_through_a_small_channel_and_closes() {
+        let mut stream = Stream::start(session(12), 1).unwrap();
+        assert!(!stream.is_live());
+        let mut frames = Vec::new();
+        let report = loop {
+            match stream.next_timeout(Duration::from_secs(30)) {
+                Next::Set(set) => {
+                    // One set per write: both cameras' rows, then the fused rows.
+                    assert!(set.rows.iter().all(|m| m.frame == set.frame));
+                    assert_eq!(set.rows.last().unwrap().camera, CameraId::Fused);
+                    frames.push(set.frame);
+                    // A slow reader: a recording waits for it instead of dropping.
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                Next::Pending => panic!("no frame set within 30 s"),
+                Next::Ended(r) => break r.unwrap(),
+            }
+        };
+        assert_eq!(frames, (0..12).collect::<Vec<u64>>());
+        assert_eq!(stream.dropped_sets(), 0);
+        assert_eq!(report.pipeline.cameras[0].frames_read, 12);
+        assert!(matches!(
+            stream.next_timeout(Duration::ZERO),
+            Next::Ended(Err(_))
+        ));
+        assert!(stream.close().is_err(), "closing an ended stream says so");
+
+        // Closed while the session waits on a full channel: it stops at once.
+        let mut stream = Stream::start(session(500), 1).unwrap();
+        assert!(matches!(
+            stream.next_timeout(Duration::from_secs(30)),
+            Next::Set(_)
+        ));
+        let t = Instant::now();
+        let report = stream.close().unwrap();
+        assert!(t.elapsed() < Duration::from_secs(10), "{:?}", t.elapsed());
+        assert!(report.pipeline.cameras[0].frames_read < 500);
+    }
+}
