@@ -123,3 +123,28 @@ def test_simulate_frames_track_like_the_truth(sim):
                 compared += 1
                 assert abs(pos - t_pos[k[0]]) < 2.0, (i, rod, pos, t_pos[k[0]])
     assert compared >= n * 4
+
+
+def test_uint16_frames_of_a_16_bit_camera_track_like_their_8_bit_pixels(sim, tmp_path):
+    """A 16-bit camera's frames (uint16, the 8-bit pixels times 257: the same luminance) give
+    the rows of the 8-bit frames, to float rounding; the other byte order is refused."""
+    path = tmp_path / "calib16.toml"
+    sim.calibration.save(path)
+    text = path.read_text()
+    assert text.count('pixel_format = "bayer_rggb8"') == 2
+    path.write_text(text.replace('pixel_format = "bayer_rggb8"', 'pixel_format = "bayer_rggb16"'))
+    cal16 = rodtrack.Calibration.load(path)
+    assert cal16.pixel_format(0) == "bayer_rggb16"
+    t8 = rodtrack.Tracker(sim.calibration, camera=0)
+    t16 = rodtrack.Tracker(cal16, camera=0)
+    for i in range(sim.frames.shape[1]):
+        f8 = sim.frames[0, i]
+        f16 = f8.astype(np.uint16) * 257
+        a, b = t8.process(f8, frame_id=i), t16.process(f16, frame_id=i)
+        np.testing.assert_array_equal(a.status, b.status)
+        np.testing.assert_allclose(a.position_mm, b.position_mm, atol=1e-3)
+        np.testing.assert_allclose(a.angle_rad, b.angle_rad, atol=1e-4)
+    with pytest.raises(TypeError, match=r"give a uint16 array, got >u2"):
+        t16.process(f16.astype(">u2"), frame_id=99)
+    with pytest.raises(TypeError, match=r"give a uint16 array, got uint8"):
+        t16.process(f8, frame_id=99)
