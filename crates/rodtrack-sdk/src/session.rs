@@ -182,6 +182,12 @@ impl Session {
         self.stop.clone()
     }
 
+    /// The session's options, to change them once the sources are open (e.g. the pipeline
+    /// settings chosen from [`Session::is_live`]).
+    pub fn options_mut(&mut self) -> &mut SessionOptions {
+        &mut self.options
+    }
+
     /// The session's cameras.
     pub fn cameras(&self) -> &[SessionCamera] {
         &self.cameras

@@ -1,0 +1,63 @@
+"""rodtrack: visual encoders for table-football rods.
+
+The tracker itself, as a native module (Rust, through PyO3): measure the slide (mm) and the
+turn (rad) of every rod a camera sees, frame by frame, from numpy arrays; run whole sessions
+(recordings, the simulator, cameras) in a background thread and iterate their fused rows;
+calibrate from calibration inputs; render the simulator's frames and truth.
+
+    import rodtrack
+    calib = rodtrack.Calibration.load("calib.toml")
+    tracker = rodtrack.Tracker(calib, camera=0, mode="enhanced")
+    rows = tracker.process(frame, frame_id=17)      # frame: numpy (H, W) uint8 / uint16
+    rows.position_mm, rows.angle_rad, rows.status    # numpy arrays, one entry per rod
+
+    with rodtrack.open(calib, inputs=["rec/cam0", "rec/cam1"]) as session:
+        for frame_set in session:
+            print(frame_set.fused.position_mm)
+
+See ``docs/python.md`` in the repository for the whole API.
+"""
+
+from ._rodtrack import (
+    COLUMNS,
+    CSV_DECIMALS,
+    FUSED,
+    MODES,
+    STATUS_NAMES,
+    Calibration,
+    CalibrationError,
+    FrameSet,
+    RodtrackError,
+    Rows,
+    Session,
+    SessionClosed,
+    Simulation,
+    Tracker,
+    __version__,
+    calibrate,
+    open,
+    read_frame,
+    simulate,
+)
+
+__all__ = [
+    "COLUMNS",
+    "CSV_DECIMALS",
+    "FUSED",
+    "MODES",
+    "STATUS_NAMES",
+    "Calibration",
+    "CalibrationError",
+    "FrameSet",
+    "RodtrackError",
+    "Rows",
+    "Session",
+    "SessionClosed",
+    "Simulation",
+    "Tracker",
+    "__version__",
+    "calibrate",
+    "open",
+    "read_frame",
+    "simulate",
+]

@@ -1,0 +1,198 @@
+//! The record's fields as columns: the ONE place that reads [`Measurement`]'s fields.
+//!
+//! Every field the binding exposes is one line of the [`columns!`] table below: its name, its
+//! element type and how it is read from a record. The table makes [`Columns`] (plain vectors,
+//! no Python), [`COLUMN_NAMES`] and, with the `python` feature, the `Rows` class whose
+//! attributes are numpy arrays (`rows.position_mm`, ...). A field added to the record is one
+//! line here (and one in the type stubs, `rodtrack/_rodtrack.pyi`, which a test checks).
+
+use rodtrack_core::{CameraId, Measurement, Status};
+
+/// The status names by code: `rows.status[i]` is an index into this list.
+pub const STATUS_NAMES: [&str; 7] = [
+    "ok",
+    "not_found",
+    "occluded",
+    "out_of_view",
+    "predicted",
+    "lost",
+    "bad_frame",
+];
+
+/// The camera code of fused rows in `rows.camera` (camera rows carry the camera's index).
+pub const FUSED_CAMERA: i64 = -1;
+
+/// The code of `status`: its index in [`STATUS_NAMES`].
+pub fn status_code(status: Status) -> u8 {
+    // An exhaustive match: a status added to the core fails to compile here.
+    let name = match status {
+        Status::Ok
+        | Status::NotFound
+        | Status::Occluded
+        | Status::OutOfView
+        | Status::Predicted
+        | Status::Lost
+        | Status::BadFrame => status.name(),
+    };
+    STATUS_NAMES.iter().position(|n| *n == name).unwrap_or(0) as u8
+}
+
+/// The camera code of a row: the camera's index, or [`FUSED_CAMERA`].
+pub fn camera_code(camera: CameraId) -> i64 {
+    match camera {
+        CameraId::Camera(i) => i64::from(i),
+        CameraId::Fused => FUSED_CAMERA,
+    }
+}
+
+macro_rules! columns {
+    ($( $(#[doc = $doc:literal])+ $name:ident : $ty:ty = |$m:ident| $get:expr ;)+) => {
+        /// Rows as columns, one vector per field of [`COLUMN_NAMES`], in row order.
+        #[derive(Debug, Clone, Default, PartialEq)]
+        pub struct Columns {
+            $( $(#[doc = $doc])+ pub $name: Vec<$ty>, )+
+        }
+
+        /// The column names, in the order of the record (and of the CSV files' columns).
+        pub const COLUMN_NAMES: &[&str] = &[$(stringify!($name)),+];
+
+        impl Columns {
+            /// Appends one record.
+            pub fn push(&mut self, m: &Measurement) {
+                $( { let $m = m; self.$name.push($get); } )+
+            }
+
+            /// The columns of `rows`.
+            pub fn of<'a>(rows: impl IntoIterator<Item = &'a Measurement>) -> Columns {
+                let mut c = Columns::default();
+                for m in rows {
+                    c.push(m);
+                }
+                c
+            }
+
+            /// Number of rows.
+            pub fn len(&self) -> usize {
+                first_len(&[$(self.$name.len()),+])
+            }
+
+            /// True when there is no row.
+            pub fn is_empty(&self) -> bool {
+                self.len() == 0
+            }
+        }
+
+        /// One tracked frame's (or frame set's) rows, one entry per row in each column: numpy
+        /// arrays named like the CSV columns. `camera` is the camera index or -1 (`FUSED`) for
+        /// fused rows; `status` a code, an index into `STATUS_NAMES`. Each attribute access
+        /// returns a new array (a copy of a few values).
+        #[cfg(feature = "python")]
+        #[pyo3::pyclass(module = "rodtrack", frozen, name = "Rows")]
+        pub struct PyRows {
+            /// The rows.
+            pub cols: Columns,
+        }
+
+        #[cfg(feature = "python")]
+        #[pyo3::pymethods]
+        impl PyRows {
+            $(
+                $(#[doc = $doc])+
+                #[getter]
+                fn $name<'py>(&self, py: pyo3::Python<'py>) -> pyo3::Bound<'py, numpy::PyArray1<$ty>> {
+                    numpy::PyArray1::from_slice(py, &self.cols.$name)
+                }
+            )+
+
+            /// The status of each row by name (``STATUS_NAMES[code]``).
+            fn status_names(&self) -> Vec<&'static str> {
+                self.cols
+                    .status
+                    .iter()
+                    .map(|c| STATUS_NAMES.get(usize::from(*c)).copied().unwrap_or("?"))
+                    .collect()
+            }
+
+            /// Number of rows.
+            fn __len__(&self) -> usize {
+                self.cols.len()
+            }
+
+            fn __repr__(&self) -> String {
+                format!("Rows({} rows: {})", self.cols.len(), COLUMN_NAMES.join(", "))
+            }
+
+            /// Every column by name, as numpy arrays.
+            fn to_dict<'py>(
+                &self,
+                py: pyo3::Python<'py>,
+            ) -> pyo3::PyResult<pyo3::Bound<'py, pyo3::types::PyDict>> {
+                use pyo3::types::PyDictMethods;
+                let d = pyo3::types::PyDict::new(py);
+                $( d.set_item(stringify!($name), numpy::PyArray1::from_slice(py, &self.cols.$name))?; )+
+                Ok(d)
+            }
+        }
+    };
+}
+
+fn first_len(lens: &[usize]) -> usize {
+    lens.first().copied().unwrap_or(0)
+}
+
+columns! {
+    /// The camera's frame id.
+    frame: u64 = |m| m.frame;
+    /// Capture time, seconds.
+    timestamp_s: f64 = |m| m.timestamp_s;
+    /// The camera's index, or -1 (`FUSED`) for fused rows.
+    camera: i64 = |m| camera_code(m.camera);
+    /// Rod id.
+    rod: u32 = |m| m.rod;
+    /// Translation along the rod's axis from its calibrated zero, mm.
+    position_mm: f64 = |m| m.position_mm;
+    /// Rotation about the rod's axis, right-handed, in [0, 2 pi).
+    angle_rad: f64 = |m| m.angle_rad;
+    /// Rotation counting whole turns, rad.
+    angle_unwrapped_rad: f64 = |m| m.angle_unwrapped_rad;
+    /// Translation velocity, mm/s (0 when not estimated: raw rows).
+    velocity_mm_s: f64 = |m| m.velocity_mm_s;
+    /// Angular velocity, rad/s (0 when not estimated: raw rows).
+    angular_velocity_rad_s: f64 = |m| m.angular_velocity_rad_s;
+    /// Confidence in [0, 1].
+    quality: f64 = |m| m.quality;
+    /// Whether to trust the values: an index into `STATUS_NAMES` (0 = ok).
+    status: u8 = |m| status_code(m.status);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_status_has_its_code_and_name() {
+        for (i, name) in STATUS_NAMES.iter().enumerate() {
+            let s = Status::from_name(name).expect("a status name of the core");
+            assert_eq!(status_code(s) as usize, i, "{name}");
+        }
+    }
+
+    #[test]
+    fn the_columns_follow_the_csv_columns() {
+        // The CSV's columns are the record's; the binding exposes each of them by its name.
+        for c in rodtrack_core::measurement::CSV_COLUMNS {
+            assert!(
+                COLUMN_NAMES.contains(&c),
+                "column {c} missing from the binding"
+            );
+        }
+        let mut m = Measurement::empty(7, 0.035, CameraId::Fused, 3, Status::Occluded);
+        m.position_mm = -12.5;
+        let c = Columns::of([&m, &m]);
+        assert_eq!(c.len(), 2);
+        assert_eq!(c.frame, [7, 7]);
+        assert_eq!(c.camera, [FUSED_CAMERA; 2]);
+        assert_eq!(c.position_mm, [-12.5; 2]);
+        assert_eq!(c.status, [2, 2]);
+    }
+}
