@@ -153,7 +153,7 @@ fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
 /// accuracy issue's targets (std 0.03 mm, max 0.15 mm; std 0.002 rad, max 0.01 rad), no gross
 /// error, full coverage.
 #[test]
-fn random_setups_with_known_poses_meet_the_position_targets() {
+fn random_setups_with_known_poses_meet_the_targets() {
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
     for seed in [11, 12, 13] {
         let s = run_setup(seed, true, "25");
