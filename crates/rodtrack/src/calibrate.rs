@@ -147,6 +147,18 @@ pub fn print_report(cam: &CameraCalibration) {
         for [frame, err] in &s.known_pose_errors_mm {
             println!("       known pose in frame {frame}: position read {err:+.3} mm off");
         }
+        if !r.enhanced.angle_bias_rad.is_empty() {
+            let pts: Vec<String> = r
+                .enhanced
+                .angle_bias_rad
+                .iter()
+                .map(|[p, b]| format!("{b:+.4} rad at {p:.1} mm"))
+                .collect();
+            println!(
+                "       angle bias along the travel (removed): {}",
+                pts.join(", ")
+            );
+        }
         for w in &s.warnings {
             println!("       warning: {w}");
         }

@@ -10,7 +10,7 @@ use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
 use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
-use crate::angle::wrap_2pi;
+use crate::angle::{wrap_2pi, wrap_pi};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
@@ -392,6 +392,8 @@ pub fn calibrate_rod_with(
             phase_sign: vote.unwrap_or(1),
             phase_offset_steps: 0.0,
             angle_offset_rad: 0.0,
+            angle_bias_rad: Vec::new(),
+            learn_centre_slope: true,
         },
         paper: None,
         residuals: Residuals::default(),
@@ -472,7 +474,12 @@ pub fn calibrate_rod_with(
         warnings,
     };
     cal.validate(frame.width(), frame.height())?;
-    // The known poses read back with the final calibration.
+    // The known poses read back with the final calibration (a first frame: nothing learnt),
+    // and where their angle is given, the angle's bias there.
+    if travel_model == "known_poses" {
+        cal.enhanced.learn_centre_slope = false;
+    }
+    let mut bias: Vec<[f64; 2]> = Vec::new();
     for (kp, kframe) in extras.known {
         let mut t = RodTracker::new(&cal, kframe.width(), kframe.height(), Mode::Enhanced)?;
         let r = t.process(kframe)?;
@@ -480,6 +487,18 @@ pub fn calibrate_rod_with(
             cal.residuals
                 .known_pose_errors_mm
                 .push([kp.frame as f64, r.position_mm - kp.position_mm]);
+            if let Some(a) = kp.angle_rad {
+                let b = wrap_pi(r.angle_rad - a);
+                if b.abs() <= MAX_ANGLE_BIAS_RAD {
+                    bias.push([kp.position_mm, b]);
+                } else {
+                    cal.residuals.warnings.push(format!(
+                        "known pose in frame {}: angle read {b:+.3} rad off the one given; \
+                         check the pose (not used for the angle)",
+                        kp.frame
+                    ));
+                }
+            }
         } else {
             cal.residuals.warnings.push(format!(
                 "known pose in frame {} reads as {}",
@@ -487,7 +506,33 @@ pub fn calibrate_rod_with(
             ));
         }
     }
+    if !bias.is_empty() {
+        bias.push([s_ref, 0.0]);
+        cal.enhanced.angle_bias_rad = merge_bias_points(bias);
+    }
     Ok(cal)
+}
+
+/// The most a known pose's angle may be off before it is taken as a wrong pose rather than
+/// a bias (a pixel of centre line across an 11 px radius is 0.09 rad; the biases measured are
+/// a few hundredths of that).
+const MAX_ANGLE_BIAS_RAD: f64 = 0.05;
+
+/// Bias points sorted by position, those within 1 mm of each other averaged.
+fn merge_bias_points(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    pts.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    let mut out: Vec<([f64; 2], f64)> = Vec::new();
+    for p in pts {
+        match out.last_mut() {
+            Some((q, n)) if (p[0] - q[0] / *n).abs() <= 1.0 => {
+                q[0] += p[0];
+                q[1] += p[1];
+                *n += 1.0;
+            }
+            _ => out.push((p, 1.0)),
+        }
+    }
+    out.into_iter().map(|(q, n)| [q[0] / n, q[1] / n]).collect()
 }
 
 /// Least squares `y = a + b x` over `(x, y)`; returns `(a, b, rms)`.

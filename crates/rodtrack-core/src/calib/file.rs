@@ -52,6 +52,60 @@ pub struct EnhancedParams {
     pub phase_offset_steps: f64,
     /// Angle removed so the reference frame reads its known angle, rad.
     pub angle_offset_rad: f64,
+    /// The angle's bias along the travel, measured at the known poses whose angle is given:
+    /// `[position_mm, bias_rad]` sorted by position (the reference pose's bias is 0 by
+    /// construction), removed by linear interpolation between them (constant beyond). Empty
+    /// when no known pose gives an angle.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub angle_bias_rad: Vec<[f64; 2]>,
+    /// Whether the tracker may move the centre line along the travel from the silhouettes it
+    /// measures while tracking (the angle's lateral reference). Off when calibration measured
+    /// the line at known poses over the travel: the tracker's quick silhouettes then only add
+    /// their own drift.
+    #[serde(default = "default_true", skip_serializing_if = "is_true")]
+    pub learn_centre_slope: bool,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn is_true(v: &bool) -> bool {
+    *v
+}
+
+impl EnhancedParams {
+    /// The angle's bias at `position_mm` ([`EnhancedParams::angle_bias_rad`] interpolated),
+    /// rad; 0 without known-pose angles.
+    pub fn angle_bias_at(&self, position_mm: f64) -> f64 {
+        angle_bias_at(&self.angle_bias_rad, position_mm)
+    }
+}
+
+/// `[position_mm, bias_rad]` points (sorted by position) interpolated linearly at
+/// `position_mm`, constant beyond the first and last; 0 when there are none.
+pub fn angle_bias_at(points: &[[f64; 2]], position_mm: f64) -> f64 {
+    let (Some(first), Some(last)) = (points.first(), points.last()) else {
+        return 0.0;
+    };
+    if position_mm <= first[0] {
+        return first[1];
+    }
+    if position_mm >= last[0] {
+        return last[1];
+    }
+    for w in points.windows(2) {
+        let ([p0, b0], [p1, b1]) = (w[0], w[1]);
+        if position_mm <= p1 {
+            let f = if p1 > p0 {
+                (position_mm - p0) / (p1 - p0)
+            } else {
+                1.0
+            };
+            return b0 + f * (b1 - b0);
+        }
+    }
+    last[1]
 }
 
 /// What calibration measured about its own quality (informative; not used for tracking).
@@ -197,6 +251,16 @@ impl RodCalibration {
         }
         finite("reference_position_mm", self.reference_position_mm)?;
         finite("reference_angle_rad", self.reference_angle_rad)?;
+        for (i, p) in self.enhanced.angle_bias_rad.iter().enumerate() {
+            finite(&format!("enhanced.angle_bias_rad[{i}]"), p[0])?;
+            finite(&format!("enhanced.angle_bias_rad[{i}]"), p[1])?;
+            if i > 0 && p[0] < self.enhanced.angle_bias_rad[i - 1][0] {
+                return Err(err(
+                    "enhanced.angle_bias_rad",
+                    "must be sorted by position".into(),
+                ));
+            }
+        }
         let k = &self.knots;
         if k.len() < 2 {
             return Err(err("knots", "needs at least 2 knots".into()));
@@ -292,5 +356,21 @@ impl RodCalibration {
             }
         }
         Ok(marker)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::angle_bias_at;
+
+    #[test]
+    fn angle_bias_interpolates_between_points_and_holds_beyond() {
+        assert_eq!(angle_bias_at(&[], 10.0), 0.0);
+        let pts = [[-100.0, 0.004], [0.0, 0.0], [100.0, -0.002]];
+        assert!((angle_bias_at(&pts, -50.0) - 0.002).abs() < 1e-12);
+        assert!((angle_bias_at(&pts, 50.0) + 0.001).abs() < 1e-12);
+        assert!((angle_bias_at(&pts, 0.0)).abs() < 1e-12);
+        assert_eq!(angle_bias_at(&pts, -300.0), 0.004);
+        assert_eq!(angle_bias_at(&pts, 300.0), -0.002);
     }
 }

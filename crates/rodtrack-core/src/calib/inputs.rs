@@ -85,11 +85,15 @@ pub struct TravelFrames {
     pub zero: usize,
     /// Frame with the rod at `travel_mm[1]`.
     pub max: usize,
+    /// The rod's angle in these frames, rad, when known (then they also measure the angle's
+    /// bias along the travel).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_rad: Option<f64>,
 }
 
 impl RodInputs {
-    /// Every known pose of the rod: `known_poses`, then those `travel_frames` gives (position
-    /// only), in that order, without duplicates of the same frame.
+    /// Every known pose of the rod: `known_poses`, then those `travel_frames` gives (with its
+    /// angle when it gives one), in that order, without duplicates of the same frame.
     pub fn all_known_poses(&self) -> Vec<KnownPose> {
         let mut out = self.known_poses.clone();
         if let Some(t) = self.travel_frames {
@@ -102,7 +106,7 @@ impl RodInputs {
                     out.push(KnownPose {
                         frame,
                         position_mm,
-                        angle_rad: None,
+                        angle_rad: t.angle_rad,
                     });
                 }
             }

@@ -16,8 +16,8 @@ pub mod validate;
 pub use camera::{calibrate_camera, calibrate_camera_from_view};
 pub use compute::{calibrate_rod, calibrate_rod_with, RodExtras, DEFAULT_VIEW_ANGLE_DEG};
 pub use file::{
-    CalibrationFile, CameraCalibration, EnhancedParams, PaperParams, Residuals, RodCalibration,
-    CALIBRATION_VERSION,
+    angle_bias_at, CalibrationFile, CameraCalibration, EnhancedParams, PaperParams, Residuals,
+    RodCalibration, CALIBRATION_VERSION,
 };
 pub use inputs::{
     CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose,

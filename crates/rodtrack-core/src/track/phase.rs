@@ -3,6 +3,7 @@
 
 use super::state::{EnhancedState, Intermediate, PhaseFit};
 use super::tuning::{EPS_FORGET, EPS_LEARN_FRAMES, EPS_RESCORE_EVERY};
+use crate::calib::angle_bias_at;
 use crate::frame::FrameView;
 use crate::line::LinePoint;
 use crate::marker::Marker;
@@ -102,7 +103,11 @@ impl EnhancedState {
             swvv += w * pv * pv;
         }
         let variation = swvv - swv * swv / sw.max(1e-12);
-        let phi = b.atan2(a);
+        // The angle's bias measured by calibration at this position, removed from the phase
+        // (the angle is -phase_sign * phi / cycles plus constants, see the judge).
+        let cycles = (m.steps() / 4) as f64;
+        let bias = angle_bias_at(&st.angle_bias, position);
+        let phi = b.atan2(a) + st.phase_sign * cycles * bias;
         // Per row (phase_v sums the rows).
         let amplitude = (a * a + b * b).sqrt() / rows.len() as f64;
         PhaseFit {

@@ -79,6 +79,14 @@ pub(super) struct EnhancedState {
     pub(super) ring_u_mid: f64,
     /// The rod's centre line learnt from the rings' silhouettes over all frames so far.
     pub(super) centre: CentreFit,
+    /// Whether the learnt centre line moves the phase's lateral reference along the travel
+    /// (calibration's `learn_centre_slope`).
+    pub(super) centre_slope: bool,
+    /// The angle's bias along the travel measured by calibration (see
+    /// [`EnhancedParams::angle_bias_rad`](crate::calib::EnhancedParams::angle_bias_rad)), and
+    /// the print's direction around the rod (`phase_sign`).
+    pub(super) angle_bias: Vec<[f64; 2]>,
+    pub(super) phase_sign: f64,
     /// Frames processed (for decimating the learning).
     pub(super) frames_seen: u64,
     /// Frames in which the whole travel was searched (diagnostics).
@@ -254,6 +262,9 @@ impl EnhancedState {
             ring_u_mid: ring_u.iter().map(|r| r.0).sum::<f64>() / ring_u.len().max(1) as f64,
             ring_u,
             centre: CentreFit::default(),
+            centre_slope: calib.enhanced.learn_centre_slope,
+            angle_bias: calib.enhanced.angle_bias_rad.clone(),
+            phase_sign: calib.enhanced.phase_sign as f64,
             frames_seen: 0,
             full_searches: 0,
             inter: None,
@@ -304,9 +315,10 @@ impl EnhancedState {
         position_mm: f64,
     ) -> CentreAt {
         let c0 = m.bit_space_centre_mm(0);
-        let (offset_px, radius_ratio) = self
+        let (run_px, radius_ratio) = self
             .centre
             .run_between(reference_position_mm + c0, position_mm + c0);
+        let offset_px = if self.centre_slope { run_px } else { 0.0 };
         CentreAt {
             offset_px,
             radius_ratio,
