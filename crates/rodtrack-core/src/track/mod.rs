@@ -11,6 +11,7 @@
 //! stages use `tuning` (the constants), `learners` (what is learnt over frames), and the
 //! helpers `silhouette` and `linalg`, which use no stage.
 
+mod agree;
 mod centre;
 mod edges;
 mod gray;
@@ -27,6 +28,7 @@ mod silhouette;
 mod state;
 mod tuning;
 
+pub use agree::min_wrong_share;
 pub use judge::fuse_steps;
 pub use learners::{CentreFit, ScaleFit, Silhouette};
 pub use result::RodResult;
@@ -200,7 +202,8 @@ impl RodTracker {
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
         let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
         let gray = st.gray_code(m, frame, &inter, ph.mean);
-        st.judge(m, calib, &inter, &gray, &ph)
+        let check = st.code_check(m, calib, frame, &inter, &gray, &ph);
+        st.judge(m, calib, &inter, &gray, &ph, &check)
     }
 
     /// The paper mode: [`PaperState::process`] on this rod's paper parameters.

@@ -1,12 +1,13 @@
 //! The enhanced mode's per-rod state: the precomputed tables, the scratch buffers, what the
 //! learners hold, and the records one frame's stages hand on to the next.
 
+use super::agree::min_wrong_share;
 use super::learners::{CentreFit, ScaleFit};
 use super::linalg::normal_inverse;
 use super::silhouette::silhouette_rings;
 use super::tuning::{
-    eps_of, EDGE_HALF_CELLS, EDGE_SAMPLES_PER_CELL, EPS_GRID, PHASE_SAMPLES_PER_PERIOD,
-    SEARCH_MARGIN_MM,
+    eps_of, CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, EDGE_HALF_CELLS, EDGE_SAMPLES_PER_CELL,
+    EPS_GRID, PHASE_SAMPLES_PER_PERIOD, SEARCH_MARGIN_MM,
 };
 use crate::calib::RodCalibration;
 use crate::line::PreparedKnots;
@@ -53,6 +54,11 @@ pub(super) struct EnhancedState {
     /// over the samples (the samples need not hold whole periods, nor be evenly spread in the
     /// print's angle, for the fit to keep the phase unbiased).
     pub(super) eps_ginv: Vec<[[f64; 3]; 3]>,
+    /// Per `eps`: the surface angle each phase sample sees, `asin(sin(delta) / (1 + eps))`.
+    pub(super) eps_angles: Vec<Vec<f64>>,
+    /// The least share of a bit space's checked samples that a reading fooled by a group or
+    /// more disagrees with (see [`super::min_wrong_share`]).
+    pub(super) code_wrong_share: f64,
     /// Matched-filter energy per `eps`, accumulated over frames.
     pub(super) eps_acc: Vec<f64>,
     /// This frame's DFT per `eps` (scratch).
@@ -128,6 +134,9 @@ pub(super) struct GrayRead {
     pub(super) alpha: u32,
     /// Each bit's distance from the threshold, in half contrasts (bit space `k` at `k`).
     pub(super) margins: [f64; 8],
+    /// The light's offset on the barcode's scale at each bit space (see
+    /// [`EnhancedState::gray_code`]).
+    pub(super) offsets: [f64; 8],
 }
 
 /// The phase step's result.
@@ -219,6 +228,15 @@ impl EnhancedState {
                     .collect()
             })
             .collect();
+        let eps_angles: Vec<Vec<f64>> = eps_values
+            .iter()
+            .map(|eps| {
+                phase_delta
+                    .iter()
+                    .map(|&(d, _, _)| (d.sin() / (1.0 + eps)).clamp(-1.0, 1.0).asin())
+                    .collect()
+            })
+            .collect();
         let eps_ginv: Vec<[[f64; 3]; 3]> = eps_tables.iter().map(|t| normal_inverse(t)).collect();
         // Rows across the middle of the longest white and black runs of the barcode: the print's
         // shading across the rod (the light is fixed in the world, so it depends on the angle
@@ -248,6 +266,12 @@ impl EnhancedState {
             }
         };
         let n_phase = count;
+        let checked: Vec<f64> = phase_delta
+            .iter()
+            .step_by(CODE_CHECK_EVERY)
+            .map(|p| p.0)
+            .collect();
+        let code_wrong_share = min_wrong_share(marker.bits(), &checked, CODE_CHECK_EDGE_STEPS);
         let ring_u = silhouette_rings(marker);
         EnhancedState {
             last_k: None,
@@ -286,6 +310,8 @@ impl EnhancedState {
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             eps_tables,
             eps_ginv,
+            eps_angles,
+            code_wrong_share,
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
             eps_best: eps_values.len() / 2,

@@ -84,3 +84,11 @@ pub(super) const MAX_STRIPE_AMP_RATIO: f64 = 1.2;
 /// explain: 0.81 for sharp stripes (8/pi^2), more when blurred; below this, noise alone
 /// would have to be a third of the variation.
 pub(super) const MIN_STRIPE_SHARE: f64 = 0.6;
+
+// ---------------------------------------------------------------- the code across the rod
+
+/// The code's check across the rod uses every this many phase samples.
+pub(super) const CODE_CHECK_EVERY: usize = 1;
+/// Samples this near an edge of a bit space's pattern (in Gray steps) are not checked: the
+/// print's blur and the angle's own error (a tenth of a step) stay inside it.
+pub(super) const CODE_CHECK_EDGE_STEPS: f64 = 0.5;
