@@ -14,6 +14,7 @@
 mod agree;
 mod centre;
 mod edges;
+mod fresh;
 mod gray;
 mod judge;
 mod learners;
@@ -172,7 +173,54 @@ impl RodTracker {
         })
     }
 
+    /// Fresh searches from the calibration alone (a rod not measured `ok` while its marker
+    /// may be in view gets one on a schedule; see [`RodTracker::learnt_resets`]).
+    pub fn fresh_searches(&self) -> u64 {
+        self.enhanced.fresh_searches
+    }
+
+    /// Fresh searches that measured the rod `ok` where the learnt state did not: each reset
+    /// the learnt state (the centre line, the phase's radius correction, the edges' bias, the
+    /// shading reused, where the marker was) to what the fresh search learnt.
+    pub fn learnt_resets(&self) -> u64 {
+        self.enhanced.learnt_resets
+    }
+
+    /// The learnt centre line, to set a state by hand (tests of recovery from a learnt state
+    /// gone wrong).
+    #[doc(hidden)]
+    pub fn centre_fit_mut(&mut self) -> &mut CentreFit {
+        &mut self.enhanced.centre
+    }
+
+    /// The enhanced mode with its recovery: a rod not measured `ok` while its marker may be
+    /// in view is searched afresh on a schedule (see `fresh`).
     fn process_enhanced(&mut self, frame: &FrameView) -> RodResult {
+        let r = self.measure_enhanced(frame);
+        let st = &mut self.enhanced;
+        if r.status == Status::Ok {
+            st.not_ok_run = 0;
+            return r;
+        }
+        st.not_ok_run += 1;
+        if !st.fresh_search_due(r.status) {
+            return r;
+        }
+        st.fresh_searches += 1;
+        st.forget();
+        let fresh = self.measure_enhanced(frame);
+        let st = &mut self.enhanced;
+        if fresh.status == Status::Ok {
+            st.learnt_resets += 1;
+            st.not_ok_run = 0;
+            fresh
+        } else {
+            st.restore();
+            r
+        }
+    }
+
+    fn measure_enhanced(&mut self, frame: &FrameView) -> RodResult {
         let m = &self.marker;
         let calib = &self.calib;
         let st = &mut self.enhanced;

@@ -2,6 +2,7 @@
 //! learners hold, and the records one frame's stages hand on to the next.
 
 use super::agree::min_wrong_share;
+use super::fresh::Learnt;
 use super::learners::{CentreFit, ScaleFit};
 use super::linalg::normal_inverse;
 use super::silhouette::silhouette_rings;
@@ -89,6 +90,13 @@ pub(super) struct EnhancedState {
     pub(super) frames_seen: u64,
     /// Frames in which the whole travel was searched (diagnostics).
     pub(super) full_searches: u64,
+    /// Frames in a row not measured `ok` (see `fresh`).
+    pub(super) not_ok_run: u64,
+    /// Fresh searches from the calibration alone, and those that reset the learnt state.
+    pub(super) fresh_searches: u64,
+    pub(super) learnt_resets: u64,
+    /// The learnt state set aside during a fresh search.
+    pub(super) backup: Learnt,
     /// The last frame's results between stages, when it got past the edges.
     pub(super) inter: Option<Intermediate>,
     /// Where the marker is expected in the next frame (last position plus last motion), mm on
@@ -280,6 +288,10 @@ impl EnhancedState {
             centre: CentreFit::default(),
             frames_seen: 0,
             full_searches: 0,
+            not_ok_run: 0,
+            fresh_searches: 0,
+            learnt_resets: 0,
+            backup: Learnt::with_sizes(eps_values.len(), n_phase),
             inter: None,
             predicted_mm: None,
             white_u: run_rows(false),

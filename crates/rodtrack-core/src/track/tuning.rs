@@ -92,3 +92,10 @@ pub(super) const CODE_CHECK_EVERY: usize = 1;
 /// Samples this near an edge of a bit space's pattern (in Gray steps) are not checked: the
 /// print's blur and the angle's own error (a tenth of a step) stay inside it.
 pub(super) const CODE_CHECK_EDGE_STEPS: f64 = 0.5;
+
+// ---------------------------------------------------------------- fresh search
+
+/// A rod not measured `ok` gets a fresh search from its calibration alone on the first such
+/// frame and every this many frames after: a marker measurable again is measured within this
+/// many frames whatever the learnt state holds.
+pub(super) const FRESH_SEARCH_EVERY: u64 = 4;
