@@ -95,6 +95,11 @@ pub struct RunOptions {
     pub keep_rows: bool,
     /// Print where the time goes.
     pub timing: bool,
+    /// (camera, rod) whose marker may be glared over: not held to the recovery target.
+    pub glared: Option<(usize, u32)>,
+    /// Rows of rods turning faster than this (rad/s) are not held to the recovery target
+    /// (blur); 0: no limit.
+    pub max_rate_rad_s: f64,
 }
 
 /// Calibrates every camera on its reference frame (clicks drawn from `seed`), then tracks
@@ -172,12 +177,17 @@ pub fn run(
                         st.1 = 0;
                         continue;
                     }
+                    let fast = opts.max_rate_rad_s > 0.0
+                        && t.m.angular_velocity_rad_s.abs() > opts.max_rate_rad_s;
+                    let measurable = !fast && opts.glared != Some((c, m.rod));
                     tally.visible += 1;
                     if ok {
                         tally.visible_ok += 1;
                         tally.max_angle_rad = tally.max_angle_rad.max(ea);
                         tally.max_position_mm = tally.max_position_mm.max(ep);
                         st.0 = true;
+                        st.1 = 0;
+                    } else if !measurable {
                         st.1 = 0;
                     } else if st.0 {
                         if st.1 == 0 {
