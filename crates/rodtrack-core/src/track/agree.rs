@@ -15,7 +15,7 @@
 
 use super::judge::fused_steps;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
-use super::tuning::{CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY};
+use super::tuning::{CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, CODE_CHECK_SLOW_STEPS};
 use crate::calib::RodCalibration;
 use crate::frame::FrameView;
 use crate::marker::{gray, Marker};
@@ -47,13 +47,26 @@ impl EnhancedState {
         ph: &PhaseFit,
     ) -> CodeCheck {
         let (frac4, theta) = fused_steps(m, calib, gray_read, ph);
+        // Temporal consistency: a rod measured ok at the last frame, turning slowly then and
+        // now, cannot have had its high bits fooled (that jumps a group of 4 steps at once,
+        // which only an acceleration beyond any rod's would hide): nothing to check.
+        let steps_f = m.steps() as f64;
+        if let Some(prev) = self.last_ok_theta {
+            let d = (theta - prev + 0.5 * steps_f).rem_euclid(steps_f) - 0.5 * steps_f;
+            if d.abs() < CODE_CHECK_SLOW_STEPS && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS {
+                return CodeCheck {
+                    frac4,
+                    theta,
+                    worst_share: 0.0,
+                };
+            }
+        }
         // The print coordinate grows with the sample angle across the rod as the phase does.
         let sign = calib.enhanced.phase_sign as f64;
         let reference_position_mm = calib.reference_position_mm;
         let position = inter.edges.position_mm;
         let ca = self.centre_at(m, reference_position_mm, position);
         let steps = m.steps();
-        let steps_f = steps as f64;
         let to_steps = sign * steps_f / TAU;
         let min_span = 0.2 * (inter.loc.white - inter.loc.black);
         let surface = &self.eps_angles[self.eps_best];

@@ -82,6 +82,8 @@ impl EnhancedState {
         self.last_k = None;
         self.predicted_mm = None;
         self.inter = None;
+        // Nothing learnt: the fresh reading is checked across the rod.
+        self.last_ok_theta = None;
     }
 
     /// Takes the learnt state set aside by [`EnhancedState::forget`] back.

@@ -96,6 +96,14 @@ impl EnhancedState {
         let quality = (q_ncc * q_amp * q_edge * q_code).sqrt().sqrt();
         if status == Status::Ok {
             self.last_k = Some(k);
+            let s = steps as f64;
+            self.last_dtheta = match self.last_ok_theta {
+                Some(p) => (theta - p + 0.5 * s).rem_euclid(s) - 0.5 * s,
+                None => s,
+            };
+            self.last_ok_theta = Some(theta);
+        } else {
+            self.last_ok_theta = None;
         }
         RodResult {
             position_mm: inter.edges.position_out_mm,

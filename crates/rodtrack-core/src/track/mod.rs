@@ -203,6 +203,8 @@ impl RodTracker {
             return r;
         }
         st.not_ok_run += 1;
+        // Whatever stage gave up, the next reading is not continued from an old one.
+        st.last_ok_theta = None;
         if !st.fresh_search_due(r.status) {
             return r;
         }

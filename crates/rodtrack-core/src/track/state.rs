@@ -90,6 +90,10 @@ pub(super) struct EnhancedState {
     pub(super) frames_seen: u64,
     /// Frames in which the whole travel was searched (diagnostics).
     pub(super) full_searches: u64,
+    /// The fused angle (Gray steps) of the last frame, when it was measured ok, and how far
+    /// it had moved from the frame before (see `agree`).
+    pub(super) last_ok_theta: Option<f64>,
+    pub(super) last_dtheta: f64,
     /// Frames in a row not measured `ok` (see `fresh`).
     pub(super) not_ok_run: u64,
     /// Fresh searches from the calibration alone, and those that reset the learnt state.
@@ -289,6 +293,8 @@ impl EnhancedState {
             frames_seen: 0,
             full_searches: 0,
             not_ok_run: 0,
+            last_ok_theta: None,
+            last_dtheta: 0.0,
             fresh_searches: 0,
             learnt_resets: 0,
             backup: Learnt::with_sizes(eps_values.len(), n_phase),

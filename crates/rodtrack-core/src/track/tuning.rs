@@ -99,3 +99,8 @@ pub(super) const CODE_CHECK_EDGE_STEPS: f64 = 0.5;
 /// frame and every this many frames after: a marker measurable again is measured within this
 /// many frames whatever the learnt state holds.
 pub(super) const FRESH_SEARCH_EVERY: u64 = 4;
+/// A rod measured ok whose angle moved less than this (Gray steps) from the last frame, and
+/// had moved less than this the frame before, is not checked across the rod: a fooled group
+/// would need a change of speed by 4 - 2 x this steps per frame in one frame (about 19 000
+/// rad/s^2 at 200 fps; a spin-up to 3000 rpm in 20 ms is 15 700).
+pub(super) const CODE_CHECK_SLOW_STEPS: f64 = 0.75;
