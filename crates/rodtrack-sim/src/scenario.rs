@@ -208,6 +208,7 @@ impl Scenario {
                         at_mm: [600.0, 300.0, 80.0],
                         sigma_px: 70.0,
                         peak_dn: 170.0,
+                        camera: None,
                     }),
                     ..scene.lighting
                 });

@@ -179,6 +179,10 @@ pub struct Glare {
     pub sigma_px: f64,
     /// Peak added brightness at full glare level, DN.
     pub peak_dn: f64,
+    /// Only this camera (an index into the simulation's cameras) sees the blob: a specular
+    /// reflection seen from one viewpoint. `None`: every camera sees it.
+    #[serde(default)]
+    pub camera: Option<usize>,
 }
 
 /// Lighting of the table (static part; the scenario varies brightness and glare over time).
@@ -192,6 +196,19 @@ pub struct Lighting {
     pub glare: Option<Glare>,
     /// Fraction of light that is ambient (the rest comes from straight above).
     pub ambient: f64,
+}
+
+impl Lighting {
+    /// The light camera `camera` sees: without a glare meant for another camera only.
+    pub fn for_camera(mut self, camera: usize) -> Lighting {
+        if self
+            .glare
+            .is_some_and(|g| g.camera.is_some_and(|c| c != camera))
+        {
+            self.glare = None;
+        }
+        self
+    }
 }
 
 impl Default for Lighting {

@@ -173,8 +173,10 @@ impl Simulation {
         let renderers: Vec<CameraRenderer> = std::thread::scope(|s| {
             let handles: Vec<_> = cameras
                 .iter()
-                .map(|c| {
+                .enumerate()
+                .map(|(i, c)| {
                     let (sc, sh, nz) = (&lit_scene, &shader, &noise);
+                    let lighting = lighting.for_camera(i);
                     s.spawn(move || CameraRenderer::new(c, sc, &lighting, sh, mode, nz))
                 })
                 .collect();

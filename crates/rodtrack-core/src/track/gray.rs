@@ -66,18 +66,24 @@ impl EnhancedState {
         };
         let mut samples = [0.0f32; 8];
         let mut margins = [0.0f64; 8];
+        let mut offsets = [0.0f64; 8];
         for (kb, s) in samples.iter_mut().enumerate().take(bits) {
             let c = m.bit_space_centre_mm(kb as u32);
             let off = match offq {
                 Some(oq) => off0 + (oq - off0) * (c - u0) / (uq - u0),
                 None => off0,
             };
+            offsets[kb] = off;
             // Outside the frame: read as the threshold, an ambiguous bit.
             let v = read(c, m.bit_space_mm(), &GRAY_SAMPLES).map_or(0.5, |v| v - off);
             *s = v as f32;
             margins[kb] = (v - 0.5).abs() / 0.5;
         }
         let (_, alpha) = decode_bits(&samples[..bits], 0.5);
-        GrayRead { alpha, margins }
+        GrayRead {
+            alpha,
+            margins,
+            offsets,
+        }
     }
 }

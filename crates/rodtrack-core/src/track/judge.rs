@@ -1,5 +1,6 @@
 //! Step 6: the phase fused with the Gray code, their consistency, and the status and quality.
 
+use super::agree::CodeCheck;
 use super::result::RodResult;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
 use super::tuning::{MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
@@ -19,18 +20,15 @@ impl EnhancedState {
         inter: &Intermediate,
         gray: &GrayRead,
         ph: &PhaseFit,
+        check: &CodeCheck,
     ) -> RodResult {
+        let (frac4, theta) = (check.frac4, check.theta);
         let alpha = gray.alpha;
-        let (phi, amp_ratio) = (ph.phi, ph.amp_ratio);
+        let amp_ratio = ph.amp_ratio;
         let (ncc, k) = (inter.loc.ncc, inter.loc.k);
         let edge_std = inter.edges.edge_std_mm;
         let cell = m.cell_mm();
-        let sigma = calib.enhanced.phase_sign as f64;
-        let frac4 = (4.0 * ((-sigma * phi) / TAU).rem_euclid(1.0)
-            + calib.enhanced.phase_offset_steps)
-            .rem_euclid(4.0);
         let steps = m.steps();
-        let theta = fuse_steps(frac4, alpha, steps);
         let angle = wrap_2pi(theta * TAU / steps as f64 - calib.enhanced.angle_offset_rad);
         // 6. Consistency and status.
         let code_dist = {
@@ -80,6 +78,13 @@ impl EnhancedState {
             status = Status::Occluded;
             reason = "a high Gray bit is ambiguous";
         }
+        // The decoded angle against the whole visible print of every bit space (see
+        // `agree`): a reading whose high bits were fooled disagrees with most of some bit
+        // space; a true one nowhere but by noise.
+        if check.worst_share > 0.5 * self.code_wrong_share {
+            status = Status::Occluded;
+            reason = "Gray code disagrees with the print across the rod";
+        }
         if code_dist > 1.5 {
             status = Status::Occluded;
             reason = "Gray code and phase disagree";
@@ -91,6 +96,14 @@ impl EnhancedState {
         let quality = (q_ncc * q_amp * q_edge * q_code).sqrt().sqrt();
         if status == Status::Ok {
             self.last_k = Some(k);
+            let s = steps as f64;
+            self.last_dtheta = match self.last_ok_theta {
+                Some(p) => (theta - p + 0.5 * s).rem_euclid(s) - 0.5 * s,
+                None => s,
+            };
+            self.last_ok_theta = Some(theta);
+        } else {
+            self.last_ok_theta = None;
         }
         RodResult {
             position_mm: inter.edges.position_out_mm,
@@ -108,8 +121,24 @@ impl EnhancedState {
             amp_ratio,
             stripe_share: ph.share,
             edge_std_mm: edge_std,
+            code_disagreement: check.worst_share,
         }
     }
+}
+
+/// The phase's place inside a group of 4 steps, `[0, 4)`, and the angle fused with the Gray
+/// code, `[0, steps)`, both in Gray steps.
+pub(super) fn fused_steps(
+    m: &Marker,
+    calib: &RodCalibration,
+    gray: &GrayRead,
+    ph: &PhaseFit,
+) -> (f64, f64) {
+    let sigma = calib.enhanced.phase_sign as f64;
+    let frac4 = (4.0 * ((-sigma * ph.phi) / TAU).rem_euclid(1.0)
+        + calib.enhanced.phase_offset_steps)
+        .rem_euclid(4.0);
+    (frac4, fuse_steps(frac4, gray.alpha, m.steps()))
 }
 
 /// The Gray code's bit (as a mask) that changes at the edge between groups of 4 steps nearest

@@ -11,8 +11,10 @@
 //! stages use `tuning` (the constants), `learners` (what is learnt over frames), and the
 //! helpers `silhouette` and `linalg`, which use no stage.
 
+mod agree;
 mod centre;
 mod edges;
+mod fresh;
 mod gray;
 mod judge;
 mod learners;
@@ -27,6 +29,7 @@ mod silhouette;
 mod state;
 mod tuning;
 
+pub use agree::min_wrong_share;
 pub use judge::fuse_steps;
 pub use learners::{CentreFit, ScaleFit, Silhouette};
 pub use result::RodResult;
@@ -170,7 +173,56 @@ impl RodTracker {
         })
     }
 
+    /// Fresh searches from the calibration alone (a rod not measured `ok` while its marker
+    /// may be in view gets one on a schedule; see [`RodTracker::learnt_resets`]).
+    pub fn fresh_searches(&self) -> u64 {
+        self.enhanced.fresh_searches
+    }
+
+    /// Fresh searches that measured the rod `ok` where the learnt state did not: each reset
+    /// the learnt state (the centre line, the phase's radius correction, the edges' bias, the
+    /// shading reused, where the marker was) to what the fresh search learnt.
+    pub fn learnt_resets(&self) -> u64 {
+        self.enhanced.learnt_resets
+    }
+
+    /// The learnt centre line, to set a state by hand (tests of recovery from a learnt state
+    /// gone wrong).
+    #[doc(hidden)]
+    pub fn centre_fit_mut(&mut self) -> &mut CentreFit {
+        &mut self.enhanced.centre
+    }
+
+    /// The enhanced mode with its recovery: a rod not measured `ok` while its marker may be
+    /// in view is searched afresh on a schedule (see `fresh`).
     fn process_enhanced(&mut self, frame: &FrameView) -> RodResult {
+        let r = self.measure_enhanced(frame);
+        let st = &mut self.enhanced;
+        if r.status == Status::Ok {
+            st.not_ok_run = 0;
+            return r;
+        }
+        st.not_ok_run += 1;
+        // Whatever stage gave up, the next reading is not continued from an old one.
+        st.last_ok_theta = None;
+        if !st.fresh_search_due(r.status) {
+            return r;
+        }
+        st.fresh_searches += 1;
+        st.forget();
+        let fresh = self.measure_enhanced(frame);
+        let st = &mut self.enhanced;
+        if fresh.status == Status::Ok {
+            st.learnt_resets += 1;
+            st.not_ok_run = 0;
+            fresh
+        } else {
+            st.restore();
+            r
+        }
+    }
+
+    fn measure_enhanced(&mut self, frame: &FrameView) -> RodResult {
         let m = &self.marker;
         let calib = &self.calib;
         let st = &mut self.enhanced;
@@ -200,7 +252,8 @@ impl RodTracker {
         st.shading(m, calib.reference_position_mm, frame, &inter, false);
         let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
         let gray = st.gray_code(m, frame, &inter, ph.mean);
-        st.judge(m, calib, &inter, &gray, &ph)
+        let check = st.code_check(m, calib, frame, &inter, &gray, &ph);
+        st.judge(m, calib, &inter, &gray, &ph, &check)
     }
 
     /// The paper mode: [`PaperState::process`] on this rod's paper parameters.

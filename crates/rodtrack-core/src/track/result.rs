@@ -28,4 +28,7 @@ pub struct RodResult {
     pub stripe_share: f64,
     /// Diagnostics: spread of the barcode's edges around their fit, mm.
     pub edge_std_mm: f64,
+    /// Diagnostics: the largest share of a bit space's samples across the rod whose colour
+    /// is not the one the decoded angle expects.
+    pub code_disagreement: f64,
 }

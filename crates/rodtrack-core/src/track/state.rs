@@ -1,12 +1,14 @@
 //! The enhanced mode's per-rod state: the precomputed tables, the scratch buffers, what the
 //! learners hold, and the records one frame's stages hand on to the next.
 
+use super::agree::min_wrong_share;
+use super::fresh::Learnt;
 use super::learners::{CentreFit, ScaleFit};
 use super::linalg::normal_inverse;
 use super::silhouette::silhouette_rings;
 use super::tuning::{
-    eps_of, EDGE_HALF_CELLS, EDGE_SAMPLES_PER_CELL, EPS_GRID, PHASE_SAMPLES_PER_PERIOD,
-    SEARCH_MARGIN_MM,
+    eps_of, CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, EDGE_HALF_CELLS, EDGE_SAMPLES_PER_CELL,
+    EPS_GRID, PHASE_SAMPLES_PER_PERIOD, SEARCH_MARGIN_MM,
 };
 use crate::calib::RodCalibration;
 use crate::line::PreparedKnots;
@@ -53,6 +55,11 @@ pub(super) struct EnhancedState {
     /// over the samples (the samples need not hold whole periods, nor be evenly spread in the
     /// print's angle, for the fit to keep the phase unbiased).
     pub(super) eps_ginv: Vec<[[f64; 3]; 3]>,
+    /// Per `eps`: the surface angle each phase sample sees, `asin(sin(delta) / (1 + eps))`.
+    pub(super) eps_angles: Vec<Vec<f64>>,
+    /// The least share of a bit space's checked samples that a reading fooled by a group or
+    /// more disagrees with (see [`super::min_wrong_share`]).
+    pub(super) code_wrong_share: f64,
     /// Matched-filter energy per `eps`, accumulated over frames.
     pub(super) eps_acc: Vec<f64>,
     /// This frame's DFT per `eps` (scratch).
@@ -91,6 +98,17 @@ pub(super) struct EnhancedState {
     pub(super) frames_seen: u64,
     /// Frames in which the whole travel was searched (diagnostics).
     pub(super) full_searches: u64,
+    /// The fused angle (Gray steps) of the last frame, when it was measured ok, and how far
+    /// it had moved from the frame before (see `agree`).
+    pub(super) last_ok_theta: Option<f64>,
+    pub(super) last_dtheta: f64,
+    /// Frames in a row not measured `ok` (see `fresh`).
+    pub(super) not_ok_run: u64,
+    /// Fresh searches from the calibration alone, and those that reset the learnt state.
+    pub(super) fresh_searches: u64,
+    pub(super) learnt_resets: u64,
+    /// The learnt state set aside during a fresh search.
+    pub(super) backup: Learnt,
     /// The last frame's results between stages, when it got past the edges.
     pub(super) inter: Option<Intermediate>,
     /// Where the marker is expected in the next frame (last position plus last motion), mm on
@@ -136,6 +154,9 @@ pub(super) struct GrayRead {
     pub(super) alpha: u32,
     /// Each bit's distance from the threshold, in half contrasts (bit space `k` at `k`).
     pub(super) margins: [f64; 8],
+    /// The light's offset on the barcode's scale at each bit space (see
+    /// [`EnhancedState::gray_code`]).
+    pub(super) offsets: [f64; 8],
 }
 
 /// The phase step's result.
@@ -227,6 +248,15 @@ impl EnhancedState {
                     .collect()
             })
             .collect();
+        let eps_angles: Vec<Vec<f64>> = eps_values
+            .iter()
+            .map(|eps| {
+                phase_delta
+                    .iter()
+                    .map(|&(d, _, _)| (d.sin() / (1.0 + eps)).clamp(-1.0, 1.0).asin())
+                    .collect()
+            })
+            .collect();
         let eps_ginv: Vec<[[f64; 3]; 3]> = eps_tables.iter().map(|t| normal_inverse(t)).collect();
         // Rows across the middle of the longest white and black runs of the barcode: the print's
         // shading across the rod (the light is fixed in the world, so it depends on the angle
@@ -256,6 +286,12 @@ impl EnhancedState {
             }
         };
         let n_phase = count;
+        let checked: Vec<f64> = phase_delta
+            .iter()
+            .step_by(CODE_CHECK_EVERY)
+            .map(|p| p.0)
+            .collect();
+        let code_wrong_share = min_wrong_share(marker.bits(), &checked, CODE_CHECK_EDGE_STEPS);
         let ring_u = silhouette_rings(marker);
         EnhancedState {
             last_k: None,
@@ -267,6 +303,12 @@ impl EnhancedState {
             phase_sign: calib.enhanced.phase_sign as f64,
             frames_seen: 0,
             full_searches: 0,
+            not_ok_run: 0,
+            last_ok_theta: None,
+            last_dtheta: 0.0,
+            fresh_searches: 0,
+            learnt_resets: 0,
+            backup: Learnt::with_sizes(eps_values.len(), n_phase),
             inter: None,
             predicted_mm: None,
             white_u: run_rows(false),
@@ -297,6 +339,8 @@ impl EnhancedState {
             profile: vec![0.0; (2.0 * EDGE_HALF_CELLS * EDGE_SAMPLES_PER_CELL as f64) as usize + 1],
             eps_tables,
             eps_ginv,
+            eps_angles,
+            code_wrong_share,
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
             eps_best: eps_values.len() / 2,

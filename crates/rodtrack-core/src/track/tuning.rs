@@ -84,3 +84,23 @@ pub(super) const MAX_STRIPE_AMP_RATIO: f64 = 1.2;
 /// explain: 0.81 for sharp stripes (8/pi^2), more when blurred; below this, noise alone
 /// would have to be a third of the variation.
 pub(super) const MIN_STRIPE_SHARE: f64 = 0.6;
+
+// ---------------------------------------------------------------- the code across the rod
+
+/// The code's check across the rod uses every this many phase samples.
+pub(super) const CODE_CHECK_EVERY: usize = 1;
+/// Samples this near an edge of a bit space's pattern (in Gray steps) are not checked: the
+/// print's blur and the angle's own error (a tenth of a step) stay inside it.
+pub(super) const CODE_CHECK_EDGE_STEPS: f64 = 0.5;
+
+// ---------------------------------------------------------------- fresh search
+
+/// A rod not measured `ok` gets a fresh search from its calibration alone on the first such
+/// frame and every this many frames after: a marker measurable again is measured within this
+/// many frames whatever the learnt state holds.
+pub(super) const FRESH_SEARCH_EVERY: u64 = 4;
+/// A rod measured ok whose angle moved less than this (Gray steps) from the last frame, and
+/// had moved less than this the frame before, is not checked across the rod: a fooled group
+/// would need a change of speed by 4 - 2 x this steps per frame in one frame (about 19 000
+/// rad/s^2 at 200 fps; a spin-up to 3000 rpm in 20 ms is 15 700).
+pub(super) const CODE_CHECK_SLOW_STEPS: f64 = 0.75;

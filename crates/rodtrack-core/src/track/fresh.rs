@@ -1,0 +1,106 @@
+//! Recovery by construction: no learnt state may keep a measurable rod from being measured.
+//!
+//! Everything the enhanced mode learns over frames (the centre line and radius with their
+//! gates, the phase's radius correction, the edges' bias, the reused shading, where the
+//! marker was) helps a measurement but also decides it: a learner that took bad samples can
+//! gate out the good ones and keep the rod `occluded` for ever. So a rod that is not `ok`
+//! while its marker may be in view gets, on a schedule, a fresh search of the same frame from
+//! its calibration alone, with nothing learnt. If the fresh search measures the rod `ok`,
+//! the learnt state disagreed with a good measurement: it is dropped for the fresh one and
+//! the reset is counted ([`super::RodTracker::learnt_resets`]). Otherwise the learnt state
+//! is kept as it was.
+//!
+//! The learnt mm scale along the line ([`super::ScaleFit`]) is kept through a fresh search
+//! and a reset: it only turns a position found into true mm and decides nothing.
+
+use super::learners::CentreFit;
+use super::state::{EnhancedState, Intermediate};
+use super::tuning::FRESH_SEARCH_EVERY;
+use crate::measurement::Status;
+
+/// What a fresh search sets aside (preallocated: a fresh search allocates nothing).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Learnt {
+    centre: CentreFit,
+    edge_bias_mm: f64,
+    eps_acc: Vec<f64>,
+    eps_best: usize,
+    frames_seen: u64,
+    white_rel: Vec<f64>,
+    black_rel: Vec<f64>,
+    shading_at_mm: f64,
+    shading_age: u32,
+    last_k: Option<usize>,
+    predicted_mm: Option<f64>,
+    inter: Option<Intermediate>,
+}
+
+impl Learnt {
+    /// Room for a rod's state.
+    pub(super) fn with_sizes(n_eps: usize, n_phase: usize) -> Learnt {
+        Learnt {
+            eps_acc: vec![0.0; n_eps],
+            white_rel: vec![0.0; n_phase],
+            black_rel: vec![0.0; n_phase],
+            ..Default::default()
+        }
+    }
+}
+
+impl EnhancedState {
+    /// Whether this frame's result `status`, after `not_ok_run` frames in a row not `ok`
+    /// (this one included), calls for a fresh search: the marker may be in view and the rod
+    /// was not measured, on the first such frame and every [`FRESH_SEARCH_EVERY`]th after.
+    pub(super) fn fresh_search_due(&self, status: Status) -> bool {
+        !matches!(status, Status::Ok | Status::OutOfView)
+            && self.not_ok_run % FRESH_SEARCH_EVERY == 1
+    }
+
+    /// Sets the learnt state aside and starts from the calibration alone.
+    pub(super) fn forget(&mut self) {
+        let mut b = std::mem::take(&mut self.backup);
+        b.centre = self.centre;
+        b.edge_bias_mm = self.edge_bias_mm;
+        b.eps_acc.copy_from_slice(&self.eps_acc);
+        b.eps_best = self.eps_best;
+        b.frames_seen = self.frames_seen;
+        b.white_rel.copy_from_slice(&self.white_rel);
+        b.black_rel.copy_from_slice(&self.black_rel);
+        b.shading_at_mm = self.shading_at_mm;
+        b.shading_age = self.shading_age;
+        b.last_k = self.last_k;
+        b.predicted_mm = self.predicted_mm;
+        b.inter = self.inter;
+        self.backup = b;
+        self.centre = CentreFit::default();
+        self.edge_bias_mm = 0.0;
+        self.eps_acc.fill(0.0);
+        self.eps_best = self.eps_acc.len() / 2;
+        self.frames_seen = 0;
+        self.shading_at_mm = f64::NAN;
+        self.shading_age = 0;
+        self.last_k = None;
+        self.predicted_mm = None;
+        self.inter = None;
+        // Nothing learnt: the fresh reading is checked across the rod.
+        self.last_ok_theta = None;
+    }
+
+    /// Takes the learnt state set aside by [`EnhancedState::forget`] back.
+    pub(super) fn restore(&mut self) {
+        let b = std::mem::take(&mut self.backup);
+        self.centre = b.centre;
+        self.edge_bias_mm = b.edge_bias_mm;
+        self.eps_acc.copy_from_slice(&b.eps_acc);
+        self.eps_best = b.eps_best;
+        self.frames_seen = b.frames_seen;
+        self.white_rel.copy_from_slice(&b.white_rel);
+        self.black_rel.copy_from_slice(&b.black_rel);
+        self.shading_at_mm = b.shading_at_mm;
+        self.shading_age = b.shading_age;
+        self.last_k = b.last_k;
+        self.predicted_mm = b.predicted_mm;
+        self.inter = b.inter;
+        self.backup = b;
+    }
+}
