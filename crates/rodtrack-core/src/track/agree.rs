@@ -32,7 +32,13 @@ pub(super) struct CodeCheck {
     /// Over the bit spaces, the largest share of checked samples whose colour is not the one
     /// the decoded angle expects (0 when none could be checked).
     pub(super) worst_share: f64,
+    /// Whether another reading of the high bits (the angle shifted by whole groups of 4
+    /// steps) agrees with the print across the rod better than the decoded one.
+    pub(super) better_reading: bool,
 }
+
+/// The most groups of 4 Gray steps a code is checked over (a 8-bit code).
+const MAX_GROUPS: usize = 64;
 
 impl EnhancedState {
     /// Fuses the phase with the Gray code and checks the angle against the print across the
@@ -58,6 +64,7 @@ impl EnhancedState {
                     frac4,
                     theta,
                     worst_share: 0.0,
+                    better_reading: false,
                 };
             }
         }
@@ -70,6 +77,13 @@ impl EnhancedState {
         let to_steps = sign * steps_f / TAU;
         let min_span = 0.2 * (inter.loc.white - inter.loc.black);
         let surface = &self.eps_angles[self.eps_best];
+        let ink = |k: u32, x: f64| (gray(x.rem_euclid(steps_f) as u32 % steps) >> k) & 1 == 1;
+        // Every reading of the high bits that keeps the phase's place in its group: the
+        // decoded one (group shift 0) and the others, each shifted by whole groups of 4 steps.
+        // Over all bit spaces, the share of checked samples each disagrees with.
+        let groups = ((steps / 4) as usize).clamp(1, MAX_GROUPS);
+        let mut group_n = [0u32; MAX_GROUPS];
+        let mut group_wrong = [0u32; MAX_GROUPS];
         let mut worst = 0.0f64;
         // Bit space 0 repeats every group of 4 steps: it tells no group from another (and the
         // phase's fit already holds it to the stripes).
@@ -79,16 +93,6 @@ impl EnhancedState {
             let off = gray_read.offsets[k as usize];
             let (mut n, mut wrong) = (0u32, 0u32);
             for j in (0..self.phase_delta.len()).step_by(CODE_CHECK_EVERY) {
-                // The print coordinate this sample sees, and the expected colour there: skip
-                // samples near an edge of the pattern (blur, the angle's own error).
-                let x = theta + to_steps * surface[j];
-                let ink = |x: f64| (gray(x.rem_euclid(steps_f) as u32 % steps) >> k) & 1 == 1;
-                let expect = ink(x);
-                if ink(x - CODE_CHECK_EDGE_STEPS) != expect
-                    || ink(x + CODE_CHECK_EDGE_STEPS) != expect
-                {
-                    continue;
-                }
                 let (px, py) = lp.offset(0.0, e + rad * self.phase_delta[j].2);
                 if !frame.contains(px as f32, py as f32, 1.0) {
                     continue;
@@ -96,24 +100,49 @@ impl EnhancedState {
                 let v = frame.luma_bilinear(px as f32, py as f32) as f64;
                 let span = (self.white[j] - self.black[j]).max(min_span);
                 let r = (v - self.black[j]) / span - off;
-                n += 1;
-                // Ink reads below the middle between the print's black and white, paper above
-                // it and not brighter than paper by half the contrast.
-                let agrees = if expect {
-                    r < 0.5
-                } else {
-                    (0.5..1.5).contains(&r)
-                };
-                wrong += (!agrees) as u32;
+                for (g, (gn, gw)) in group_n
+                    .iter_mut()
+                    .zip(group_wrong.iter_mut())
+                    .take(groups)
+                    .enumerate()
+                {
+                    // The print coordinate this sample sees under this reading, and the
+                    // expected colour there: skip samples near an edge of the pattern (blur,
+                    // the angle's own error).
+                    let x = theta + 4.0 * g as f64 + to_steps * surface[j];
+                    let expect = ink(k, x);
+                    if ink(k, x - CODE_CHECK_EDGE_STEPS) != expect
+                        || ink(k, x + CODE_CHECK_EDGE_STEPS) != expect
+                    {
+                        continue;
+                    }
+                    // Ink reads below the middle between the print's black and white, paper
+                    // above it and not brighter than paper by half the contrast.
+                    let agrees = if expect {
+                        r < 0.5
+                    } else {
+                        (0.5..1.5).contains(&r)
+                    };
+                    *gn += 1;
+                    *gw += (!agrees) as u32;
+                    if g == 0 {
+                        n += 1;
+                        wrong += (!agrees) as u32;
+                    }
+                }
             }
             if n > 0 {
                 worst = worst.max(wrong as f64 / n as f64);
             }
         }
+        let share = |g: usize| group_wrong[g] as f64 / group_n[g].max(1) as f64;
+        let decoded = share(0);
+        let better_reading = (1..groups).any(|g| group_n[g] > 0 && share(g) < decoded);
         CodeCheck {
             frac4,
             theta,
             worst_share: worst,
+            better_reading,
         }
     }
 }

@@ -79,9 +79,14 @@ impl EnhancedState {
             reason = "a high Gray bit is ambiguous";
         }
         // The decoded angle against the whole visible print of every bit space (see
-        // `agree`): a reading whose high bits were fooled disagrees with most of some bit
-        // space; a true one nowhere but by noise.
-        if check.worst_share > 0.5 * self.code_wrong_share {
+        // `agree`): a reading whose high bits were fooled disagrees with much of some bit
+        // space, and the true reading (another group) agrees with the print better; a true
+        // one disagrees only by noise, or where the rod's image is off its model (a radius
+        // or centre read a little off), and then every other reading is worse still. A
+        // reading that disagrees with most of a bit space is refused whatever the others do.
+        if check.worst_share > 0.5 * self.code_wrong_share
+            && (check.better_reading || check.worst_share > 0.5)
+        {
             status = Status::Occluded;
             reason = "Gray code disagrees with the print across the rod";
         }
