@@ -2,18 +2,58 @@
 
 use crate::angle::wrap_pi_fold;
 use crate::calib::CameraCalibration;
-use crate::filter::{FilterBank, FilterConfig};
+use crate::filter::{FilterBank, FilterConfig, TurnStats};
 use crate::frame::FrameView;
 use crate::fusion::{Disagreement, Fuser, FusionConfig, OutOfSync};
 use crate::measurement::{CameraId, Measurement, Status};
 use crate::track::{Mode, RodResult, RodTracker};
 use crate::CoreError;
 
-/// Per-rod state kept across frames: the multi-turn count.
+/// Per-rod state kept across frames: the multi-turn count of the raw rows.
+///
+/// Consecutive `ok` rows are unwrapped by the shortest way (`|step| <= pi`). That is exact
+/// when the rod cannot turn half a turn between them: `max_angular_velocity * dt < pi`, with
+/// the filter's speed bound ([`FilterConfig::max_angular_velocity_rad_s`]). A longer step (a
+/// frame not `ok` in between, a slow frame rate) makes the count unknown; it is re-anchored
+/// after [`FilterConfig::reanchor_frames`] consecutive short steps, as in the filter.
 #[derive(Debug, Clone, Copy, Default)]
 struct TurnState {
     last_angle: Option<f64>,
+    last_t: f64,
     unwrapped: f64,
+    known: bool,
+    steady: u32,
+}
+
+impl TurnState {
+    /// Takes the angle of an `ok` row at time `t`; returns (unwrapped angle, count known).
+    fn take(&mut self, angle_rad: f64, t: f64, cfg: &FilterConfig) -> (f64, bool) {
+        match self.last_angle {
+            None => {
+                self.unwrapped = angle_rad;
+                self.known = true;
+            }
+            Some(prev) => {
+                self.unwrapped += wrap_pi_fold(angle_rad - prev);
+                let dt = t - self.last_t;
+                if dt > 0.0 && cfg.max_angular_velocity_rad_s * dt < std::f64::consts::PI {
+                    if !self.known {
+                        self.steady += 1;
+                        if self.steady >= cfg.reanchor_frames {
+                            self.known = true;
+                            self.steady = 0;
+                        }
+                    }
+                } else {
+                    self.known = false;
+                    self.steady = 0;
+                }
+            }
+        }
+        self.last_angle = Some(angle_rad);
+        self.last_t = t;
+        (self.unwrapped, self.known)
+    }
 }
 
 /// Every rod of one camera.
@@ -23,6 +63,7 @@ pub struct CameraPipeline {
     rods: Vec<RodTracker>,
     turns: Vec<TurnState>,
     last: Vec<RodResult>,
+    turn_cfg: FilterConfig,
 }
 
 impl CameraPipeline {
@@ -39,6 +80,7 @@ impl CameraPipeline {
             rods,
             turns: vec![TurnState::default(); n],
             last: vec![RodResult::default(); n],
+            turn_cfg: filter_config(mode),
         })
     }
 
@@ -72,6 +114,7 @@ impl CameraPipeline {
             touched ^= tr.prefetch(frame);
         }
         std::hint::black_box(touched);
+        let turn_cfg = self.turn_cfg;
         for ((tr, turn), last) in self
             .rods
             .iter_mut()
@@ -91,12 +134,9 @@ impl CameraPipeline {
                 m.position_mm = r.position_mm;
                 m.angle_rad = r.angle_rad;
                 // Multi-turn count: the absolute angle needs no history, the turn count does.
-                turn.unwrapped = match turn.last_angle {
-                    None => r.angle_rad,
-                    Some(prev) => turn.unwrapped + wrap_pi_fold(r.angle_rad - prev),
-                };
-                turn.last_angle = Some(r.angle_rad);
-                m.angle_unwrapped_rad = turn.unwrapped;
+                let (unwrapped, known) = turn.take(r.angle_rad, timestamp_s, &turn_cfg);
+                m.angle_unwrapped_rad = unwrapped;
+                m.turns_known = known;
             } else {
                 m.angle_unwrapped_rad = turn.unwrapped;
             }
@@ -167,6 +207,17 @@ impl CameraFilter {
         }
     }
 
+    /// Re-anchors `rod`'s turn count by hand (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        self.bank.reanchor_turns(rod, turns);
+    }
+
+    /// The turn-count counters of this camera's filters, every rod together.
+    pub fn turn_stats(&self) -> TurnStats {
+        self.bank.turn_stats()
+    }
+
     /// Appends the filtered row of each camera row of `rows` (fused rows are not a camera's
     /// and are skipped).
     pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
@@ -205,6 +256,23 @@ impl SetFusion {
         mark_fused_bad_frames(raw, &mut out[start..]);
     }
 
+    /// Marks `conflict` the camera rows the last frame set's fusion overruled (see
+    /// [`Fuser::flag_overruled`]): pass the set's filtered camera rows.
+    pub fn flag_overruled(&self, camera_rows: &mut [Measurement]) {
+        self.fuser.flag_overruled(camera_rows);
+    }
+
+    /// Re-anchors `rod`'s turn count in the fused rows' filter (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        self.bank.reanchor_turns(rod, turns);
+    }
+
+    /// The fused rows' turn-count counters, every rod together.
+    pub fn turn_stats(&self) -> TurnStats {
+        self.bank.turn_stats()
+    }
+
     /// Cameras that disagreed in the last frame set.
     pub fn disagreements(&self) -> &[Disagreement] {
         self.fuser.disagreements()
@@ -238,8 +306,10 @@ impl FrameSetFilter {
         }
     }
 
-    /// Appends the filtered rows of every camera, then the fused rows.
+    /// Appends the filtered rows of every camera, then the fused rows; the camera rows the
+    /// fusion overruled are marked `conflict` ([`SetFusion::flag_overruled`]).
     pub fn process(&mut self, raw: &[Measurement], out: &mut Vec<Measurement>) {
+        let start = out.len();
         for m in raw {
             let CameraId::Camera(c) = m.camera else {
                 continue;
@@ -251,7 +321,20 @@ impl FrameSetFilter {
             self.per_camera[c].process(std::slice::from_ref(m), out);
         }
         if let Some(f) = self.fusion.as_mut() {
+            let cameras_end = out.len();
             f.process(raw, out);
+            f.flag_overruled(&mut out[start..cameras_end]);
+        }
+    }
+
+    /// Re-anchors `rod`'s turn count by hand in every camera's filter and the fusion's (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        for c in &mut self.per_camera {
+            c.reanchor_turns(rod, turns);
+        }
+        if let Some(f) = self.fusion.as_mut() {
+            f.reanchor_turns(rod, turns);
         }
     }
 

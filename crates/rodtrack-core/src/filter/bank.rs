@@ -1,6 +1,6 @@
 //! [`FilterBank`]: one [`RodFilter`] per rod.
 
-use super::{FilterConfig, Rejection, RodFilter};
+use super::{FilterConfig, Rejection, RodFilter, TurnStats};
 use crate::measurement::Measurement;
 
 /// One [`RodFilter`] per rod, found by rod id. Filters are created the first time a rod is seen
@@ -51,7 +51,12 @@ impl FilterBank {
     /// (quality 0) after the filter: the filter coasts through it, but the output must say
     /// that the frame was unusable.
     pub fn update(&mut self, m: &Measurement) -> Measurement {
-        let mut out = self.filter_mut(m.rod).update(m);
+        self.update_corroborated(m, false)
+    }
+
+    /// [`FilterBank::update`] with [`RodFilter::update_corroborated`].
+    pub fn update_corroborated(&mut self, m: &Measurement, corroborated: bool) -> Measurement {
+        let mut out = self.filter_mut(m.rod).update_corroborated(m, corroborated);
         if m.status == crate::Status::BadFrame {
             out.status = crate::Status::BadFrame;
             out.quality = 0.0;
@@ -65,5 +70,19 @@ impl FilterBank {
             Some(f) => f.check(m),
             None => Err(Rejection::Unconfirmed),
         }
+    }
+
+    /// Re-anchors `rod`'s turn count by hand (see [`RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        self.filter_mut(rod).reanchor_turns(turns);
+    }
+
+    /// The turn count's counters of every rod together.
+    pub fn turn_stats(&self) -> TurnStats {
+        let mut t = TurnStats::default();
+        for (_, f) in &self.filters {
+            t.add(&f.turn_stats());
+        }
+        t
     }
 }

@@ -63,6 +63,17 @@ pub struct FilterConfig {
     pub override_points: u32,
     /// Require one confirming measurement before a new track reports `ok`. Default true.
     pub confirm_reacquisition: bool,
+    /// The run's first measurement of a rod is confirmed at once (`ok` on the first frame)
+    /// when another camera agrees with it (a fused row of cameras that agree, see
+    /// [`RodFilter::update_corroborated`]) or, when this is set, when its quality is at least
+    /// this. The track then rests on that one frame: the next measurement that disagrees drops
+    /// it and a new track is confirmed as after a loss. Default `None`: quality alone does not
+    /// confirm (a single frame wrong by a stripe or a Gray step can carry a high quality).
+    pub confirm_quality: Option<f64>,
+    /// An unknown turn count is re-anchored after this many consecutive accepted frames, each
+    /// within `pi / max_angular_velocity_rad_s` of the previous one (so that no step can be
+    /// a whole turn off at the speed bound). Default 4 (20 ms at 200 fps).
+    pub reanchor_frames: u32,
     /// Time step used when a frame's timestamp does not advance, s. Default 0.005 (200 fps).
     pub nominal_dt_s: f64,
 }
@@ -88,6 +99,8 @@ impl Default for FilterConfig {
             max_angular_velocity_rad_s: 600.0,
             override_points: 4,
             confirm_reacquisition: true,
+            confirm_quality: None,
+            reanchor_frames: 4,
             nominal_dt_s: 0.005,
         }
     }

@@ -86,6 +86,7 @@
 mod axis;
 mod bank;
 mod config;
+mod turns;
 
 pub use crate::angle::wrap_pi;
 use crate::angle::{unwrap_near, wrap_2pi};
@@ -93,6 +94,8 @@ use crate::measurement::{Measurement, Status};
 use axis::{Axis, Track};
 pub use bank::FilterBank;
 pub use config::{FilterConfig, Rejection};
+use turns::TurnCount;
+pub use turns::TurnStats;
 
 /// A track not yet confirmed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,6 +103,9 @@ struct Candidate {
     track: Track,
     /// Measurements taken (1 after a start, 2 after a two-point start).
     points: u32,
+    /// Its rate comes from a two-point start over a step the speed bound does not
+    /// disambiguate.
+    ambiguous: bool,
 }
 
 /// The measurement as the filter uses it.
@@ -135,6 +141,17 @@ pub struct RodFilter {
     turn_ref: Option<f64>,
     last_t: Option<f64>,
     rejection: Option<Rejection>,
+    /// Whether the turn count is known, and its counters.
+    turns: TurnCount,
+    /// The confirmed track rests on one measurement only (the run's first frame, confirmed at
+    /// once by its quality or by agreeing cameras): the next measurement that fails its gate
+    /// drops it.
+    provisional: bool,
+    /// The run's first frame was confirmed at once already (it happens once per run).
+    first_confirmed: bool,
+    /// A measurement contradicted the confirmed track's prediction since its last update: the
+    /// prediction's turn count is in doubt until the track takes a measurement again.
+    contradicted: bool,
 }
 
 impl RodFilter {
@@ -147,6 +164,10 @@ impl RodFilter {
             turn_ref: None,
             last_t: None,
             rejection: None,
+            turns: TurnCount::default(),
+            provisional: false,
+            first_confirmed: false,
+            contradicted: false,
         }
     }
 
@@ -283,6 +304,13 @@ impl RodFilter {
     /// `position_mm`, `angle_rad`, `quality` and `status` are read: the turn count is the
     /// filter's own.
     pub fn update(&mut self, m: &Measurement) -> Measurement {
+        self.update_corroborated(m, false)
+    }
+
+    /// [`RodFilter::update`] for a row that another measurement of the same frame corroborates
+    /// (a fused row of cameras that agree): on the run's first frame such a row is confirmed
+    /// at once (see [`FilterConfig::confirm_quality`]).
+    pub fn update_corroborated(&mut self, m: &Measurement, corroborated: bool) -> Measurement {
         let m = m.sanitized();
         self.rejection = None;
         let t = m.timestamp_s;
@@ -303,6 +331,8 @@ impl RodFilter {
             if t - tr.t > self.cfg.max_coast_s {
                 self.turn_ref = Some(tr.ang.x());
                 self.main = None;
+                self.provisional = false;
+                self.turns_lost();
             }
         }
         if let Some(c) = self.candidate {
@@ -325,12 +355,25 @@ impl RodFilter {
             let g = self.gate(&tr, &o);
             match g.result {
                 Ok(()) => {
+                    self.turns_on_update(&tr, o.t);
                     let tr = Self::apply(&g, &o);
                     self.main = Some(tr);
                     self.candidate = None;
-                    return self.row(&m, &tr, Status::Ok, o.quality);
+                    self.provisional = false;
+                    self.contradicted = false;
+                    return self.row(&m, &tr, Status::Ok, o.quality, self.turns.known);
                 }
-                Err(e) => self.rejection = Some(e),
+                Err(e) => {
+                    self.rejection = Some(e);
+                    self.contradicted = true;
+                    if self.provisional {
+                        // A first frame confirmed on its own is contradicted: start again.
+                        self.main = None;
+                        self.provisional = false;
+                        self.turns.anchored = false;
+                        self.turns.known = false;
+                    }
+                }
             }
         }
 
@@ -340,13 +383,25 @@ impl RodFilter {
             (None, Some(c)) => Some(self.predict(&c.track, t).ang.x()),
             (None, None) => self.turn_ref,
         };
-        if self.feed_candidate(&o, reference) {
+        let at_once = !self.first_confirmed
+            && self.main.is_none()
+            && self.candidate.is_none()
+            && self.turn_ref.is_none()
+            && (corroborated || self.cfg.confirm_quality.is_some_and(|q| o.quality >= q));
+        if self.feed_candidate(&o, reference, at_once) {
             if let Some(c) = self.candidate {
-                if c.points >= self.cfg.override_points || self.may_replace_main(&c.track) {
+                let replaces = self.may_replace_main(&c.track);
+                if c.points >= self.cfg.override_points || replaces {
+                    self.turns_on_promote(&c, !replaces);
                     self.candidate = None;
                     self.main = Some(c.track);
+                    self.contradicted = false;
+                    self.provisional = at_once && self.cfg.confirm_reacquisition;
+                    self.first_confirmed |= at_once;
+                    self.turns_apply_pending();
                     self.rejection = None;
-                    return self.row(&m, &c.track, Status::Ok, o.quality);
+                    let tr = self.main.unwrap_or(c.track);
+                    return self.row(&m, &tr, Status::Ok, o.quality, self.turns.known);
                 }
             }
         }
@@ -379,8 +434,9 @@ impl RodFilter {
                     + c.max_angular_accel_rad_s2 * half_tau2
     }
 
-    /// Gives a measurement to the candidate track; true when the candidate is confirmed.
-    fn feed_candidate(&mut self, o: &Obs, reference: Option<f64>) -> bool {
+    /// Gives a measurement to the candidate track; true when the candidate is confirmed
+    /// (`at_once`: a new candidate is confirmed by its first measurement).
+    fn feed_candidate(&mut self, o: &Obs, reference: Option<f64>, at_once: bool) -> bool {
         let c = &self.cfg;
         // A new track's acceleration prior: small, because the gate adds the physical bound
         // `max_accel tau^2 / 2` anyway; a wide prior would open the gate past a Gray step.
@@ -409,17 +465,19 @@ impl RodFilter {
                     quality: o.quality,
                 },
                 points: 1,
+                ambiguous: false,
             }
         };
         let Some(cand) = self.candidate else {
             self.candidate = Some(start(o.angle_rad));
-            return !c.confirm_reacquisition;
+            return !c.confirm_reacquisition || at_once;
         };
         let g = self.gate(&cand.track, o);
         if g.result.is_ok() {
             self.candidate = Some(Candidate {
                 track: Self::apply(&g, o),
                 points: cand.points + 1,
+                ambiguous: cand.ambiguous,
             });
             return true;
         }
@@ -463,6 +521,7 @@ impl RodFilter {
                         quality: o.quality,
                     },
                     points: 2,
+                    ambiguous: !self.step_unambiguous(dt),
                 });
                 return false;
             }
@@ -472,7 +531,14 @@ impl RodFilter {
         !c.confirm_reacquisition
     }
 
-    fn row(&self, m: &Measurement, tr: &Track, status: Status, quality: f64) -> Measurement {
+    fn row(
+        &self,
+        m: &Measurement,
+        tr: &Track,
+        status: Status,
+        quality: f64,
+        turns_known: bool,
+    ) -> Measurement {
         Measurement {
             frame: m.frame,
             timestamp_s: m.timestamp_s,
@@ -485,6 +551,7 @@ impl RodFilter {
             angular_velocity_rad_s: tr.ang.v(),
             quality: quality.clamp(0.0, 1.0),
             status,
+            turns_known,
         }
         .sanitized()
     }
@@ -495,11 +562,14 @@ impl RodFilter {
         if let Some(tr) = &self.main {
             let p = self.predict(tr, t.max(tr.t));
             let fade = (1.0 - (t - tr.t) / self.cfg.max_coast_s).clamp(0.0, 1.0);
-            return self.row(m, &p, Status::Predicted, tr.quality * fade);
+            let known = self.turns.known && !self.contradicted && self.carried_exactly(tr, t);
+            return self.row(m, &p, Status::Predicted, tr.quality * fade, known);
         }
         if let Some(c) = &self.candidate {
             let p = self.predict(&c.track, t.max(c.track.t));
-            return self.row(m, &p, Status::Predicted, 0.25 * c.track.quality);
+            // Only the run's first track counts from its own first measurement.
+            let known = !self.turns.anchored && !c.ambiguous && self.turns.pending_turns.is_none();
+            return self.row(m, &p, Status::Predicted, 0.25 * c.track.quality, known);
         }
         Measurement::empty(m.frame, m.timestamp_s, m.camera, m.rod, Status::Lost)
     }
