@@ -172,14 +172,7 @@ impl Fuser {
     /// Marks `conflict` (quality 0) each camera row of `rows` that the last call overruled
     /// ([`Fuser::overruled`]); its values stay the camera's own.
     pub fn flag_overruled(&self, rows: &mut [Measurement]) {
-        for m in rows {
-            if self.overruled.contains(&(m.camera, m.rod))
-                && matches!(m.status, Status::Ok | Status::Predicted)
-            {
-                m.status = Status::Conflict;
-                m.quality = 0.0;
-            }
-        }
+        flag_overruled_rows(&self.overruled, rows);
     }
 
     /// Fuses, then filters: appends one filtered row per rod (camera `Fused`, rod order) to
@@ -472,6 +465,19 @@ impl Fuser {
             turns_known: r.turns_known,
         }
         .sanitized()
+    }
+}
+
+/// Marks `conflict` (quality 0) each `ok` or `predicted` row of `rows` whose (camera, rod) is
+/// in `overruled` (a list from [`Fuser::overruled`]); its values stay the camera's own.
+pub fn flag_overruled_rows(overruled: &[(CameraId, u32)], rows: &mut [Measurement]) {
+    for m in rows {
+        if overruled.contains(&(m.camera, m.rod))
+            && matches!(m.status, Status::Ok | Status::Predicted)
+        {
+            m.status = Status::Conflict;
+            m.quality = 0.0;
+        }
     }
 }
 

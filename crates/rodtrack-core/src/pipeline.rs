@@ -192,11 +192,39 @@ pub fn filter_config(mode: Mode) -> FilterConfig {
     config
 }
 
+/// A turn count given by the user: at frame `frame`, rod `rod` is at whole turn `turns`
+/// (`angle_unwrapped_rad = 2 pi turns + angle_rad` from that frame on, and the count is known).
+/// See [`crate::filter::RodFilter::reanchor_turns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TurnAnchor {
+    /// Frame id at which the count is set.
+    pub frame: u64,
+    /// Rod id.
+    pub rod: u32,
+    /// The rod's whole turn at that frame.
+    pub turns: i64,
+}
+
+/// Applies the anchors of `anchors` that fall on `row`'s frame and rod, after `row` was
+/// filtered by `bank`: the filter's count and the row's unwrapped angle.
+fn apply_anchors(anchors: &[TurnAnchor], bank: &mut FilterBank, row: &mut Measurement) {
+    for a in anchors {
+        if a.frame == row.frame && a.rod == row.rod {
+            bank.reanchor_turns(a.rod, a.turns);
+            if matches!(row.status, Status::Ok | Status::Predicted) {
+                row.angle_unwrapped_rad = std::f64::consts::TAU * a.turns as f64 + row.angle_rad;
+                row.turns_known = true;
+            }
+        }
+    }
+}
+
 /// One camera's part of the temporal filter: its rows through its per-rod filters (a runtime
 /// runs it in the camera's own thread).
 #[derive(Debug, Clone)]
 pub struct CameraFilter {
     bank: FilterBank,
+    anchors: Vec<TurnAnchor>,
 }
 
 impl CameraFilter {
@@ -204,7 +232,13 @@ impl CameraFilter {
     pub fn new(mode: Mode) -> Self {
         CameraFilter {
             bank: FilterBank::new(filter_config(mode)),
+            anchors: Vec::new(),
         }
+    }
+
+    /// Turn counts to set at given frames ([`TurnAnchor`]).
+    pub fn set_turn_anchors(&mut self, anchors: &[TurnAnchor]) {
+        self.anchors = anchors.to_vec();
     }
 
     /// Re-anchors `rod`'s turn count by hand (see
@@ -223,7 +257,9 @@ impl CameraFilter {
     pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
         for m in rows {
             if let CameraId::Camera(_) = m.camera {
-                out.push(self.bank.update(m).sanitized());
+                let mut row = self.bank.update(m).sanitized();
+                apply_anchors(&self.anchors, &mut self.bank, &mut row);
+                out.push(row);
             }
         }
     }
@@ -235,6 +271,7 @@ impl CameraFilter {
 pub struct SetFusion {
     fuser: Fuser,
     bank: FilterBank,
+    anchors: Vec<TurnAnchor>,
 }
 
 impl SetFusion {
@@ -243,7 +280,13 @@ impl SetFusion {
         SetFusion {
             fuser: Fuser::new(FusionConfig::default()),
             bank: FilterBank::new(filter_config(mode)),
+            anchors: Vec::new(),
         }
+    }
+
+    /// Turn counts to set at given frames ([`TurnAnchor`]).
+    pub fn set_turn_anchors(&mut self, anchors: &[TurnAnchor]) {
+        self.anchors = anchors.to_vec();
     }
 
     /// Appends the fused rows of the set's measured (unfiltered) rows `raw`.
@@ -252,6 +295,7 @@ impl SetFusion {
         self.fuser.process(raw, &mut self.bank, out);
         for m in &mut out[start..] {
             *m = m.sanitized();
+            apply_anchors(&self.anchors, &mut self.bank, m);
         }
         mark_fused_bad_frames(raw, &mut out[start..]);
     }
@@ -271,6 +315,11 @@ impl SetFusion {
     /// The fused rows' turn-count counters, every rod together.
     pub fn turn_stats(&self) -> TurnStats {
         self.bank.turn_stats()
+    }
+
+    /// The camera rows the last frame set's fusion overruled, as (camera, rod).
+    pub fn overruled(&self) -> &[(CameraId, u32)] {
+        self.fuser.overruled()
     }
 
     /// Cameras that disagreed in the last frame set.
