@@ -16,9 +16,9 @@
 //!    (its prediction says which camera is right), or, without a filter, when it is a strict
 //!    majority. When no group is clearly right the fused row is `conflict` with no value (the
 //!    filter then carries its prediction, still `conflict`): an `ok` row is never fused from
-//!    disagreeing cameras. The usable rows left out of the chosen group, or of a conflict, are
-//!    listed by [`Fuser::overruled`]; [`Fuser::flag_overruled`] marks those cameras' rows
-//!    `conflict` with quality 0.
+//!    disagreeing cameras. The usable rows left out of the chosen group are listed by
+//!    [`Fuser::overruled`] (none in a conflict: no camera won); [`Fuser::flag_overruled`] marks
+//!    those cameras' rows `conflict` with quality 0.
 //! 4. **Fusion.** Inverse-variance weights, variance `sigma^2 / quality^2` per row; the angle is
 //!    averaged on the circle (weighted mean of the wrapped differences to the heaviest row). The
 //!    fused quality is `min(1, sqrt(sum quality^2))`, which keeps `sigma^2 / quality^2` equal to
@@ -164,7 +164,7 @@ impl Fuser {
     }
 
     /// The cameras whose usable rows the last call left out, as (camera, rod): they disagreed
-    /// with the group of cameras the fused row took, or the rod's cameras were in conflict.
+    /// with the group of cameras the fused row took (a conflict without a winner has none).
     pub fn overruled(&self) -> &[(CameraId, u32)] {
         &self.overruled
     }
@@ -190,9 +190,9 @@ impl Fuser {
         for (m, &n) in fused.iter().zip(&self.combined) {
             let mut f = bank.update_corroborated(m, n >= 2);
             if m.status == Status::Conflict && f.status != Status::BadFrame {
-                // The filter's prediction, but the row says that the cameras disagree.
+                // The filter's prediction (its turn count as for `predicted`), but the row
+                // says that the cameras disagree.
                 f.status = Status::Conflict;
-                f.turns_known = false;
             }
             out.push(f);
         }
@@ -406,14 +406,15 @@ impl Fuser {
             Some((g, false)) => g,
             _ => 0,
         };
+        if chosen == 0 {
+            // No winner, so no loser: only the fused row reports the conflict.
+            empty.status = Status::Conflict;
+            return (empty, 0);
+        }
         for (a, &i) in usable.iter().enumerate() {
             if chosen & (1 << a) == 0 {
                 self.overruled.push((self.rows[i].camera, rod));
             }
-        }
-        if chosen == 0 {
-            empty.status = Status::Conflict;
-            return (empty, 0);
         }
         (self.combine(usable, chosen, reference), chosen.count_ones())
     }
