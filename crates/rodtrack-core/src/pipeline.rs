@@ -272,6 +272,9 @@ pub struct SetFusion {
     fuser: Fuser,
     bank: FilterBank,
     anchors: Vec<TurnAnchor>,
+    /// Whether overruled camera rows are flagged (not in paper mode: its camera rows stay the
+    /// published baseline's).
+    flags_cameras: bool,
 }
 
 impl SetFusion {
@@ -281,6 +284,7 @@ impl SetFusion {
             fuser: Fuser::new(FusionConfig::default()),
             bank: FilterBank::new(filter_config(mode)),
             anchors: Vec::new(),
+            flags_cameras: mode != Mode::Paper,
         }
     }
 
@@ -303,7 +307,7 @@ impl SetFusion {
     /// Marks `conflict` the camera rows the last frame set's fusion overruled (see
     /// [`Fuser::flag_overruled`]): pass the set's filtered camera rows.
     pub fn flag_overruled(&self, camera_rows: &mut [Measurement]) {
-        self.fuser.flag_overruled(camera_rows);
+        crate::fusion::flag_overruled_rows(self.overruled(), camera_rows);
     }
 
     /// Re-anchors `rod`'s turn count in the fused rows' filter (see
@@ -317,9 +321,14 @@ impl SetFusion {
         self.bank.turn_stats()
     }
 
-    /// The camera rows the last frame set's fusion overruled, as (camera, rod).
+    /// The camera rows the last frame set's fusion overruled, as (camera, rod); none in paper
+    /// mode (its camera rows stay the published method's).
     pub fn overruled(&self) -> &[(CameraId, u32)] {
-        self.fuser.overruled()
+        if self.flags_cameras {
+            self.fuser.overruled()
+        } else {
+            &[]
+        }
     }
 
     /// Cameras that disagreed in the last frame set.
