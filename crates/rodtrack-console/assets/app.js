@@ -4,11 +4,26 @@
 // The session token the console put in the page: sent with every state-changing request.
 const TOKEN = (document.querySelector('meta[name="rodtrack-token"]') || {}).content || '';
 
-const STATUS = ['ok', 'not_found', 'occluded', 'out_of_view', 'predicted', 'lost', 'bad_frame'];
+const STATUS = ['ok', 'not_found', 'occluded', 'out_of_view', 'predicted', 'lost', 'bad_frame', 'conflict'];
 const STATUS_COLOUR = {
   ok: '#3fd16b', not_found: '#ff5555', occluded: '#ffa931', out_of_view: '#8a8f96',
-  predicted: '#58a6ff', lost: '#c678dd', bad_frame: '#c678dd',
+  predicted: '#58a6ff', lost: '#c678dd', bad_frame: '#c678dd', conflict: '#ff79c6',
 };
+
+// An angle as a label: signed degrees in (-180, 180], so that a rod at 0 rad whose angle
+// reads just below 2 pi shows 0°, not 360°.
+function angleLabel(rad) {
+  let d = Math.round(rad * 180 / Math.PI) % 360;
+  if (d > 180) d -= 360;
+  if (d <= -180) d += 360;
+  if (Object.is(d, -0)) d = 0;
+  return `${d}°`;
+}
+
+// The text beside a rod in the live view.
+function overlayText(o) {
+  return `rod ${o.rod} ${o.status}` + (o.status === 'ok' ? ` ${o.position_mm.toFixed(1)} mm ${angleLabel(o.angle_rad)}` : (o.reason ? ` (${o.reason})` : ''));
+}
 const ROD_COLOUR = ['#e6194b', '#3cb44b', '#ffe119', '#4e8cff', '#f58231', '#bf5af2', '#42d4f4',
   '#f032e6', '#bfef45', '#fabed4', '#469990', '#dcbeff'];
 const KEEP_S = 25;
@@ -19,6 +34,7 @@ const rt = window.rodtrack = {
   series: new Map(), // "cam:rod" -> {t: [], pos: [], ang: []}
   cams: new Map(),   // camera -> {canvas, ctx, img, header}
   calib: null, calFrame: null,
+  overlayText, angleLabel,
 };
 
 const $ = (id) => document.getElementById(id);
@@ -146,7 +162,7 @@ function drawOverlay(ctx, o, X, Y) {
     label = m.barcode_px[0];
   }
   ctx.font = '11px monospace';
-  const text = `rod ${o.rod} ${o.status}` + (o.status === 'ok' ? ` ${o.position_mm.toFixed(1)} mm ${(o.angle_rad * 180 / Math.PI).toFixed(0)}°` : (o.reason ? ` (${o.reason})` : ''));
+  const text = overlayText(o);
   const tx = Math.min(X(label) + 8, ctx.canvas.width - ctx.measureText(text).width - 2), ty = Math.max(Y(label), 10);
   ctx.fillStyle = 'rgba(0,0,0,0.6)'; ctx.fillRect(tx - 2, ty - 10, ctx.measureText(text).width + 4, 13);
   ctx.fillStyle = col; ctx.fillText(text, tx, ty);

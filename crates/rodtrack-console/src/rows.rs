@@ -39,6 +39,7 @@ pub(crate) fn status_code(s: Status) -> u8 {
         Status::Predicted => 4,
         Status::Lost => 5,
         Status::BadFrame => 6,
+        Status::Conflict => 7,
     }
 }
 

@@ -354,3 +354,29 @@ fn demo_in_the_browser_screenshot_and_calibration_equal_to_the_cli() {
     }
     assert!(out.0.join("calibration.inputs/cam0/000000.pgm").is_file());
 }
+
+#[test]
+fn a_rod_at_zero_is_labelled_0_degrees_not_360() {
+    let Some(exe) = chromium() else { return };
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let console = Console::start("127.0.0.1:0".parse().unwrap(), None).unwrap();
+    let mut b = Browser::start(&exe);
+    b.open(&console.url());
+    b.wait_for("window.rodtrack !== undefined", Duration::from_secs(30));
+    // The live view's text beside a rod, for angles around 0 rad (2 pi - 0.001 reads 0).
+    let label = |b: &mut Browser, angle_rad: f64| -> String {
+        b.eval(&format!(
+            "rodtrack.overlayText({{rod: 1, status: 'ok', position_mm: 0.04, angle_rad: {angle_rad}}})"
+        ))
+        .as_str()
+        .unwrap_or("(no text)")
+        .to_string()
+    };
+    assert_eq!(label(&mut b, 6.282_174), "rod 1 ok 0.0 mm 0°");
+    assert_eq!(label(&mut b, 0.001_291), "rod 1 ok 0.0 mm 0°");
+    assert_eq!(label(&mut b, std::f64::consts::PI), "rod 1 ok 0.0 mm 180°");
+    assert_eq!(label(&mut b, 4.712_389), "rod 1 ok 0.0 mm -90°");
+    assert_eq!(label(&mut b, 1.6), "rod 1 ok 0.0 mm 92°");
+    drop(b);
+    console.shutdown();
+}

@@ -27,6 +27,7 @@ fn row(cam: u32, rod: u32, i: u64) -> Measurement {
         angular_velocity_rad_s: 0.0,
         quality: 0.9,
         status: Status::Ok,
+        turns_known: true,
     }
 }
 

@@ -14,8 +14,11 @@
 //! 3. **Choice.** When all rows agree they are all fused. Otherwise the rows are split into
 //!    groups that agree among themselves; a group is used only when the rod's filter accepts it
 //!    (its prediction says which camera is right), or, without a filter, when it is a strict
-//!    majority. When no group is clearly right the fused row is `occluded` with no value: an
-//!    `ok` row is never fused from disagreeing cameras.
+//!    majority. When no group is clearly right the fused row is `conflict` with no value (the
+//!    filter then carries its prediction, still `conflict`): an `ok` row is never fused from
+//!    disagreeing cameras. The usable rows left out of the chosen group are listed by
+//!    [`Fuser::overruled`] (none in a conflict: no camera won); [`Fuser::flag_overruled`] marks
+//!    those cameras' rows `conflict` with quality 0.
 //! 4. **Fusion.** Inverse-variance weights, variance `sigma^2 / quality^2` per row; the angle is
 //!    averaged on the circle (weighted mean of the wrapped differences to the heaviest row). The
 //!    fused quality is `min(1, sqrt(sum quality^2))`, which keeps `sigma^2 / quality^2` equal to
@@ -25,7 +28,8 @@
 //! With two cameras of equal noise the fused std is `1 / sqrt(2)` of one camera's.
 //!
 //! [`Fuser::process`] then passes each fused row through the rod's [`RodFilter`] of a
-//! [`FilterBank`]. Nothing is allocated per trigger once the scratch buffers have grown to the
+//! [`FilterBank`]; a row fused from two or more agreeing cameras is corroborated, so that on
+//! the run's first frame it is `ok` at once ([`RodFilter::update_corroborated`]). Nothing is allocated per trigger once the scratch buffers have grown to the
 //! number of rows.
 //!
 //! [`RodFilter`]: crate::filter::RodFilter
@@ -122,6 +126,10 @@ pub struct Fuser {
     fused: Vec<Measurement>,
     disagreements: Vec<Disagreement>,
     out_of_sync: Vec<OutOfSync>,
+    /// Per fused row of the last call: how many cameras it combines.
+    combined: Vec<u32>,
+    /// The usable camera rows of the last call that the fusion left out: (camera, rod).
+    overruled: Vec<(CameraId, u32)>,
 }
 
 impl Fuser {
@@ -135,6 +143,8 @@ impl Fuser {
             fused: Vec::with_capacity(64),
             disagreements: Vec::with_capacity(256),
             out_of_sync: Vec::with_capacity(MAX_ROWS_PER_ROD),
+            combined: Vec::with_capacity(64),
+            overruled: Vec::with_capacity(64),
         }
     }
 
@@ -153,6 +163,18 @@ impl Fuser {
         &self.out_of_sync
     }
 
+    /// The cameras whose usable rows the last call left out, as (camera, rod): they disagreed
+    /// with the group of cameras the fused row took (a conflict without a winner has none).
+    pub fn overruled(&self) -> &[(CameraId, u32)] {
+        &self.overruled
+    }
+
+    /// Marks `conflict` (quality 0) each camera row of `rows` that the last call overruled
+    /// ([`Fuser::overruled`]); its values stay the camera's own.
+    pub fn flag_overruled(&self, rows: &mut [Measurement]) {
+        flag_overruled_rows(&self.overruled, rows);
+    }
+
     /// Fuses, then filters: appends one filtered row per rod (camera `Fused`, rod order) to
     /// `out`, each fused row passed through its rod's filter in `bank`. The filters also decide
     /// between disagreeing cameras.
@@ -165,8 +187,14 @@ impl Fuser {
         let mut fused = std::mem::take(&mut self.fused);
         fused.clear();
         self.fuse(rows, Some(bank), &mut fused);
-        for m in &fused {
-            out.push(bank.update(m));
+        for (m, &n) in fused.iter().zip(&self.combined) {
+            let mut f = bank.update_corroborated(m, n >= 2);
+            if m.status == Status::Conflict && f.status != Status::BadFrame {
+                // The filter's prediction (its turn count as for `predicted`), but the row
+                // says that the cameras disagree.
+                f.status = Status::Conflict;
+            }
+            out.push(f);
         }
         self.fused = fused;
     }
@@ -182,6 +210,8 @@ impl Fuser {
     ) {
         self.disagreements.clear();
         self.out_of_sync.clear();
+        self.combined.clear();
+        self.overruled.clear();
         self.rows.clear();
         self.rows.extend(
             rows.iter()
@@ -203,8 +233,9 @@ impl Fuser {
                     .iter()
                     .position(|m| m.rod != rod)
                     .unwrap_or(self.rows.len() - start);
-            let row = self.fuse_rod(start, end, reference, referee);
+            let (row, n) = self.fuse_rod(start, end, reference, referee);
             out.push(row);
+            self.combined.push(n);
             start = end;
         }
     }
@@ -266,14 +297,14 @@ impl Fuser {
         (sp * sp, sa * sa)
     }
 
-    /// Fuses the rows `start..end` (one rod) into one row.
+    /// Fuses the rows `start..end` (one rod) into one row; with the number of cameras fused.
     fn fuse_rod(
         &mut self,
         start: usize,
         end: usize,
         reference: CameraClock,
         referee: Option<&FilterBank>,
-    ) -> Measurement {
+    ) -> (Measurement, u32) {
         let rod = self.rows[start].rod;
         let mut empty = Measurement::empty(
             reference.frame,
@@ -305,7 +336,7 @@ impl Fuser {
             }
         }
         if n == 0 {
-            return empty;
+            return (empty, 0);
         }
         let usable = &usable[..n];
 
@@ -338,7 +369,7 @@ impl Fuser {
         }
         let all = if n == 32 { u32::MAX } else { (1u32 << n) - 1 };
         if (0..n).all(|a| agree[a] == all) {
-            return self.combine(usable, all, reference);
+            return (self.combine(usable, all, reference), n as u32);
         }
 
         // Groups that agree among themselves: each row with the rows it agrees with, kept when
@@ -371,13 +402,21 @@ impl Fuser {
                 }
             }
         }
-        match best {
-            Some((g, false)) => self.combine(usable, g, reference),
-            _ => {
-                empty.status = Status::Occluded;
-                empty
+        let chosen = match best {
+            Some((g, false)) => g,
+            _ => 0,
+        };
+        if chosen == 0 {
+            // No winner, so no loser: only the fused row reports the conflict.
+            empty.status = Status::Conflict;
+            return (empty, 0);
+        }
+        for (a, &i) in usable.iter().enumerate() {
+            if chosen & (1 << a) == 0 {
+                self.overruled.push((self.rows[i].camera, rod));
             }
         }
+        (self.combine(usable, chosen, reference), chosen.count_ones())
     }
 
     /// The inverse-variance fusion of the usable rows selected by `mask`.
@@ -424,8 +463,22 @@ impl Fuser {
             angular_velocity_rad_s: av_sum / wa_sum,
             quality: q2.sqrt().min(1.0),
             status: Status::Ok,
+            turns_known: r.turns_known,
         }
         .sanitized()
+    }
+}
+
+/// Marks `conflict` (quality 0) each `ok` or `predicted` row of `rows` whose (camera, rod) is
+/// in `overruled` (a list from [`Fuser::overruled`]); its values stay the camera's own.
+pub fn flag_overruled_rows(overruled: &[(CameraId, u32)], rows: &mut [Measurement]) {
+    for m in rows {
+        if overruled.contains(&(m.camera, m.rod))
+            && matches!(m.status, Status::Ok | Status::Predicted)
+        {
+            m.status = Status::Conflict;
+            m.quality = 0.0;
+        }
     }
 }
 
@@ -445,6 +498,7 @@ fn missing_rank(s: Status) -> u8 {
         Status::OutOfView => 3,
         Status::Predicted => 2,
         Status::Lost => 1,
+        Status::Conflict => 6,
         Status::BadFrame | Status::Ok => 0,
     }
 }

@@ -21,5 +21,5 @@ pub use error::CoreError;
 pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
-pub use pipeline::{CameraFilter, CameraPipeline, FrameSetFilter, SetFusion};
+pub use pipeline::{CameraFilter, CameraPipeline, FrameSetFilter, SetFusion, TurnAnchor};
 pub use track::{Mode, RodResult, RodTracker, Stage};

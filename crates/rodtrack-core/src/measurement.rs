@@ -21,6 +21,11 @@ pub enum Status {
     Lost,
     /// The frame itself was unusable (corrupt, wrong size).
     BadFrame,
+    /// Cameras disagree beyond their uncertainties. On a fused row: no camera is clearly right
+    /// (none agrees with the filter's track, or there is no track yet); the values are the
+    /// filter's prediction, as for `predicted`. On a camera's row: this camera's measurement
+    /// lost against the others and was left out of the fusion; the values are its own.
+    Conflict,
 }
 
 impl Status {
@@ -34,6 +39,7 @@ impl Status {
             Status::Predicted => "predicted",
             Status::Lost => "lost",
             Status::BadFrame => "bad_frame",
+            Status::Conflict => "conflict",
         }
     }
     /// Parses a name written by [`Status::name`].
@@ -46,6 +52,7 @@ impl Status {
             Status::Predicted,
             Status::Lost,
             Status::BadFrame,
+            Status::Conflict,
         ]
         .into_iter()
         .find(|v| v.name() == s)
@@ -104,6 +111,19 @@ pub struct Measurement {
     pub quality: f64,
     /// Whether to trust the values.
     pub status: Status,
+    /// Whether `angle_unwrapped_rad` counts every whole turn since the count's anchor (the
+    /// rod's first confirmed frame, or its last re-anchoring). `false` after any stretch in
+    /// which the count could have slipped (frames rejected or missing for too long, a speed
+    /// the frame rate does not disambiguate), until the count is re-anchored: the unwrapped
+    /// angle is then the filter's best guess, right modulo `2 pi` (`angle_rad` is exact) but
+    /// possibly off by whole turns. `false` on rows without a value. Files written before this
+    /// field existed read as `true`.
+    #[serde(default = "known_by_default")]
+    pub turns_known: bool,
+}
+
+fn known_by_default() -> bool {
+    true
 }
 
 impl Measurement {
@@ -121,6 +141,7 @@ impl Measurement {
             angular_velocity_rad_s: 0.0,
             quality: 0.0,
             status,
+            turns_known: false,
         }
     }
 
@@ -146,6 +167,7 @@ impl Measurement {
         if bad && self.status == Status::Ok {
             self.status = Status::NotFound;
             self.quality = 0.0;
+            self.turns_known = false;
         }
         self.quality = self.quality.clamp(0.0, 1.0);
         self
@@ -165,4 +187,25 @@ pub const CSV_COLUMNS: [&str; 11] = [
     "angular_velocity_rad_s",
     "quality",
     "status",
+];
+
+/// The column written after [`CSV_COLUMNS`] by rodtrack's measurement files: `true` or
+/// `false` ([`Measurement::turns_known`]). Readers accept files without it (read as `true`).
+pub const TURNS_KNOWN_COLUMN: &str = "turns_known";
+
+/// The columns rodtrack's measurement files carry: [`CSV_COLUMNS`], then
+/// [`TURNS_KNOWN_COLUMN`] (last, so that the older columns keep their places).
+pub const OUTPUT_COLUMNS: [&str; 12] = [
+    "frame",
+    "timestamp_s",
+    "camera",
+    "rod",
+    "position_mm",
+    "angle_rad",
+    "angle_unwrapped_rad",
+    "velocity_mm_s",
+    "angular_velocity_rad_s",
+    "quality",
+    "status",
+    TURNS_KNOWN_COLUMN,
 ];

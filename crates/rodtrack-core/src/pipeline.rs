@@ -2,18 +2,58 @@
 
 use crate::angle::wrap_pi_fold;
 use crate::calib::CameraCalibration;
-use crate::filter::{FilterBank, FilterConfig};
+use crate::filter::{FilterBank, FilterConfig, TurnStats};
 use crate::frame::FrameView;
 use crate::fusion::{Disagreement, Fuser, FusionConfig, OutOfSync};
 use crate::measurement::{CameraId, Measurement, Status};
 use crate::track::{Mode, RodResult, RodTracker};
 use crate::CoreError;
 
-/// Per-rod state kept across frames: the multi-turn count.
+/// Per-rod state kept across frames: the multi-turn count of the raw rows.
+///
+/// Consecutive `ok` rows are unwrapped by the shortest way (`|step| <= pi`). That is exact
+/// when the rod cannot turn half a turn between them: `max_angular_velocity * dt < pi`, with
+/// the filter's speed bound ([`FilterConfig::max_angular_velocity_rad_s`]). A longer step (a
+/// frame not `ok` in between, a slow frame rate) makes the count unknown; it is re-anchored
+/// after [`FilterConfig::reanchor_frames`] consecutive short steps, as in the filter.
 #[derive(Debug, Clone, Copy, Default)]
 struct TurnState {
     last_angle: Option<f64>,
+    last_t: f64,
     unwrapped: f64,
+    known: bool,
+    steady: u32,
+}
+
+impl TurnState {
+    /// Takes the angle of an `ok` row at time `t`; returns (unwrapped angle, count known).
+    fn take(&mut self, angle_rad: f64, t: f64, cfg: &FilterConfig) -> (f64, bool) {
+        match self.last_angle {
+            None => {
+                self.unwrapped = angle_rad;
+                self.known = true;
+            }
+            Some(prev) => {
+                self.unwrapped += wrap_pi_fold(angle_rad - prev);
+                let dt = t - self.last_t;
+                if dt > 0.0 && cfg.max_angular_velocity_rad_s * dt < std::f64::consts::PI {
+                    if !self.known {
+                        self.steady += 1;
+                        if self.steady >= cfg.reanchor_frames {
+                            self.known = true;
+                            self.steady = 0;
+                        }
+                    }
+                } else {
+                    self.known = false;
+                    self.steady = 0;
+                }
+            }
+        }
+        self.last_angle = Some(angle_rad);
+        self.last_t = t;
+        (self.unwrapped, self.known)
+    }
 }
 
 /// Every rod of one camera.
@@ -23,6 +63,7 @@ pub struct CameraPipeline {
     rods: Vec<RodTracker>,
     turns: Vec<TurnState>,
     last: Vec<RodResult>,
+    turn_cfg: FilterConfig,
 }
 
 impl CameraPipeline {
@@ -39,6 +80,7 @@ impl CameraPipeline {
             rods,
             turns: vec![TurnState::default(); n],
             last: vec![RodResult::default(); n],
+            turn_cfg: filter_config(mode),
         })
     }
 
@@ -72,6 +114,7 @@ impl CameraPipeline {
             touched ^= tr.prefetch(frame);
         }
         std::hint::black_box(touched);
+        let turn_cfg = self.turn_cfg;
         for ((tr, turn), last) in self
             .rods
             .iter_mut()
@@ -91,12 +134,9 @@ impl CameraPipeline {
                 m.position_mm = r.position_mm;
                 m.angle_rad = r.angle_rad;
                 // Multi-turn count: the absolute angle needs no history, the turn count does.
-                turn.unwrapped = match turn.last_angle {
-                    None => r.angle_rad,
-                    Some(prev) => turn.unwrapped + wrap_pi_fold(r.angle_rad - prev),
-                };
-                turn.last_angle = Some(r.angle_rad);
-                m.angle_unwrapped_rad = turn.unwrapped;
+                let (unwrapped, known) = turn.take(r.angle_rad, timestamp_s, &turn_cfg);
+                m.angle_unwrapped_rad = unwrapped;
+                m.turns_known = known;
             } else {
                 m.angle_unwrapped_rad = turn.unwrapped;
             }
@@ -152,11 +192,39 @@ pub fn filter_config(mode: Mode) -> FilterConfig {
     config
 }
 
+/// A turn count given by the user: at frame `frame`, rod `rod` is at whole turn `turns`
+/// (`angle_unwrapped_rad = 2 pi turns + angle_rad` from that frame on, and the count is known).
+/// See [`crate::filter::RodFilter::reanchor_turns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TurnAnchor {
+    /// Frame id at which the count is set.
+    pub frame: u64,
+    /// Rod id.
+    pub rod: u32,
+    /// The rod's whole turn at that frame.
+    pub turns: i64,
+}
+
+/// Applies the anchors of `anchors` that fall on `row`'s frame and rod, after `row` was
+/// filtered by `bank`: the filter's count and the row's unwrapped angle.
+fn apply_anchors(anchors: &[TurnAnchor], bank: &mut FilterBank, row: &mut Measurement) {
+    for a in anchors {
+        if a.frame == row.frame && a.rod == row.rod {
+            bank.reanchor_turns(a.rod, a.turns);
+            if matches!(row.status, Status::Ok | Status::Predicted) {
+                row.angle_unwrapped_rad = std::f64::consts::TAU * a.turns as f64 + row.angle_rad;
+                row.turns_known = true;
+            }
+        }
+    }
+}
+
 /// One camera's part of the temporal filter: its rows through its per-rod filters (a runtime
 /// runs it in the camera's own thread).
 #[derive(Debug, Clone)]
 pub struct CameraFilter {
     bank: FilterBank,
+    anchors: Vec<TurnAnchor>,
 }
 
 impl CameraFilter {
@@ -164,7 +232,24 @@ impl CameraFilter {
     pub fn new(mode: Mode) -> Self {
         CameraFilter {
             bank: FilterBank::new(filter_config(mode)),
+            anchors: Vec::new(),
         }
+    }
+
+    /// Turn counts to set at given frames ([`TurnAnchor`]).
+    pub fn set_turn_anchors(&mut self, anchors: &[TurnAnchor]) {
+        self.anchors = anchors.to_vec();
+    }
+
+    /// Re-anchors `rod`'s turn count by hand (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        self.bank.reanchor_turns(rod, turns);
+    }
+
+    /// The turn-count counters of this camera's filters, every rod together.
+    pub fn turn_stats(&self) -> TurnStats {
+        self.bank.turn_stats()
     }
 
     /// Appends the filtered row of each camera row of `rows` (fused rows are not a camera's
@@ -172,7 +257,9 @@ impl CameraFilter {
     pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
         for m in rows {
             if let CameraId::Camera(_) = m.camera {
-                out.push(self.bank.update(m).sanitized());
+                let mut row = self.bank.update(m).sanitized();
+                apply_anchors(&self.anchors, &mut self.bank, &mut row);
+                out.push(row);
             }
         }
     }
@@ -184,6 +271,10 @@ impl CameraFilter {
 pub struct SetFusion {
     fuser: Fuser,
     bank: FilterBank,
+    anchors: Vec<TurnAnchor>,
+    /// Whether overruled camera rows are flagged (not in paper mode: its camera rows stay the
+    /// published baseline's).
+    flags_cameras: bool,
 }
 
 impl SetFusion {
@@ -192,7 +283,14 @@ impl SetFusion {
         SetFusion {
             fuser: Fuser::new(FusionConfig::default()),
             bank: FilterBank::new(filter_config(mode)),
+            anchors: Vec::new(),
+            flags_cameras: mode != Mode::Paper,
         }
+    }
+
+    /// Turn counts to set at given frames ([`TurnAnchor`]).
+    pub fn set_turn_anchors(&mut self, anchors: &[TurnAnchor]) {
+        self.anchors = anchors.to_vec();
     }
 
     /// Appends the fused rows of the set's measured (unfiltered) rows `raw`.
@@ -201,8 +299,36 @@ impl SetFusion {
         self.fuser.process(raw, &mut self.bank, out);
         for m in &mut out[start..] {
             *m = m.sanitized();
+            apply_anchors(&self.anchors, &mut self.bank, m);
         }
         mark_fused_bad_frames(raw, &mut out[start..]);
+    }
+
+    /// Marks `conflict` the camera rows the last frame set's fusion overruled (see
+    /// [`Fuser::flag_overruled`]): pass the set's filtered camera rows.
+    pub fn flag_overruled(&self, camera_rows: &mut [Measurement]) {
+        crate::fusion::flag_overruled_rows(self.overruled(), camera_rows);
+    }
+
+    /// Re-anchors `rod`'s turn count in the fused rows' filter (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        self.bank.reanchor_turns(rod, turns);
+    }
+
+    /// The fused rows' turn-count counters, every rod together.
+    pub fn turn_stats(&self) -> TurnStats {
+        self.bank.turn_stats()
+    }
+
+    /// The camera rows the last frame set's fusion overruled, as (camera, rod); none in paper
+    /// mode (its camera rows stay the published method's).
+    pub fn overruled(&self) -> &[(CameraId, u32)] {
+        if self.flags_cameras {
+            self.fuser.overruled()
+        } else {
+            &[]
+        }
     }
 
     /// Cameras that disagreed in the last frame set.
@@ -238,8 +364,10 @@ impl FrameSetFilter {
         }
     }
 
-    /// Appends the filtered rows of every camera, then the fused rows.
+    /// Appends the filtered rows of every camera, then the fused rows; the camera rows the
+    /// fusion overruled are marked `conflict` ([`SetFusion::flag_overruled`]).
     pub fn process(&mut self, raw: &[Measurement], out: &mut Vec<Measurement>) {
+        let start = out.len();
         for m in raw {
             let CameraId::Camera(c) = m.camera else {
                 continue;
@@ -251,7 +379,20 @@ impl FrameSetFilter {
             self.per_camera[c].process(std::slice::from_ref(m), out);
         }
         if let Some(f) = self.fusion.as_mut() {
+            let cameras_end = out.len();
             f.process(raw, out);
+            f.flag_overruled(&mut out[start..cameras_end]);
+        }
+    }
+
+    /// Re-anchors `rod`'s turn count by hand in every camera's filter and the fusion's (see
+    /// [`crate::filter::RodFilter::reanchor_turns`]).
+    pub fn reanchor_turns(&mut self, rod: u32, turns: i64) {
+        for c in &mut self.per_camera {
+            c.reanchor_turns(rod, turns);
+        }
+        if let Some(f) = self.fusion.as_mut() {
+            f.reanchor_turns(rod, turns);
         }
     }
 

@@ -68,6 +68,7 @@ fn row(cam: u32, i: usize, tr: &Truth, rng: &mut Rng) -> Measurement {
         angular_velocity_rad_s: 0.0,
         quality: 1.0,
         status: Status::Ok,
+        turns_known: true,
     }
 }
 
@@ -696,7 +697,7 @@ fn disagreeing_camera_is_detected_and_resolved_by_the_filter() {
         fuser.process(&rows, &mut bank, &mut out);
         let f = out[0];
         if bad {
-            assert_eq!(raw[0].status, Status::Occluded);
+            assert_eq!(raw[0].status, Status::Conflict);
             let d = fuser.disagreements();
             assert_eq!(d.len(), 1, "frame {i}");
             assert_eq!(d[0].cameras, [CameraId::Camera(0), CameraId::Camera(1)]);

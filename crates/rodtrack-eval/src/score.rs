@@ -36,8 +36,10 @@ pub struct Stats {
     /// Rows not visible, reported ok, and wrong (angle off by more than 0.2 rad or position by
     /// more than 5 mm): the confident wrong values a controller must never get.
     pub wrong_ok: usize,
-    /// Ok rows whose unwrapped angle has lost or gained whole turns against the truth since the
-    /// first ok row of its camera and rod (a multi-turn encoder must count every turn).
+    /// Silent turn slips: ok rows that claim a known turn count (`turns_known`) whose unwrapped
+    /// angle has lost or gained whole turns against the truth since the count's anchor (the
+    /// first such row of its camera and rod, and again the first after rows that said the count
+    /// was unknown: a re-anchoring). A multi-turn encoder must count every turn it claims.
     pub turn_slips: usize,
     #[serde(skip)]
     acc: [f64; 4],
@@ -158,10 +160,15 @@ pub fn score(
         out.entry(None).or_default().add(ep, ea);
     }
     // Turn counting: per (camera, rod), the unwrapped angle against the truth's, with the whole
-    // turns between them fixed at the first ok row.
+    // turns between them fixed at the first ok row that claims a known count, and fixed again at
+    // the first such row after rows that said the count was unknown (a re-anchoring).
     let mut origin: HashMap<(i64, u32), f64> = HashMap::new();
     for (m, _) in measured {
         if m.status != Status::Ok {
+            continue;
+        }
+        if !m.turns_known {
+            origin.remove(&(key(m).1, m.rod));
             continue;
         }
         let found = match m.camera {
@@ -228,7 +235,7 @@ pub fn format_table(table: &BTreeMap<Option<u32>, Stats>) -> String {
         out,
         "(mm and rad; gross: angle off by >= 2pi/32 or position by >= 5 mm, on visible rows; \
          false ok: reported ok while the marker is not wholly visible; wrong ok: those off by \
-         > 0.2 rad or > 5 mm; turns: ok rows whose turn count slipped)"
+         > 0.2 rad or > 5 mm; turns: ok rows whose claimed turn count slipped)"
     );
     out
 }
@@ -248,6 +255,7 @@ mod tests {
         m.position_mm = pos;
         m.angle_rad = ang;
         m.angle_unwrapped_rad = ang;
+        m.turns_known = true;
         m
     }
 
@@ -292,5 +300,24 @@ mod tests {
         assert!(lines[1].trim_start().starts_with("1 "));
         assert!(lines[2].trim_start().starts_with("all "));
         assert!(lines[3].starts_with("(mm and rad"));
+    }
+
+    #[test]
+    fn only_claimed_turn_counts_slip() {
+        let truth: Vec<_> = (0..6)
+            .map(|f| (row(f, 1, 0.0, 0.1, Status::Ok), Some(true)))
+            .collect();
+        // Frame 2 says its count is unknown; from frame 3 the count is re-anchored a turn
+        // ahead: not a silent slip. Frame 5 slips a turn while claiming its count.
+        let ang = [0.1, 0.1, 0.1 + TAU, 0.1 + TAU, 0.1 + TAU, 0.1 + 2.0 * TAU];
+        let measured: Vec<_> = (0..6)
+            .map(|f| {
+                let mut m = row(f, 1, 0.0, 0.1, Status::Ok);
+                m.angle_unwrapped_rad = ang[f as usize];
+                m.turns_known = f != 2;
+                (m, None)
+            })
+            .collect();
+        assert_eq!(score(&truth, &measured)[&None].turn_slips, 1);
     }
 }

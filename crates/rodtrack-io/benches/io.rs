@@ -52,6 +52,7 @@ fn rows() -> Vec<Measurement> {
             angular_velocity_rad_s: -30.0,
             quality: 0.97,
             status: Status::Ok,
+            turns_known: true,
         })
         .collect()
 }

@@ -1,7 +1,7 @@
 //! Measurement sinks and readers.
 #![allow(clippy::unwrap_used, missing_docs)]
 
-use rodtrack_core::measurement::CSV_COLUMNS;
+use rodtrack_core::measurement::OUTPUT_COLUMNS;
 use rodtrack_core::{CameraId, Measurement, Status};
 use rodtrack_io::sink::{
     decode_udp_packet, encode_udp_packet, parse_measurements_csv, UDP_HEADER_BYTES, UDP_ROW_BYTES,
@@ -32,13 +32,16 @@ fn row(frame: u64, camera: CameraId, rod: u32) -> Measurement {
         angular_velocity_rad_s: 60.5,
         quality: 0.95,
         status: Status::Ok,
+        turns_known: true,
     }
 }
 
 fn sample_rows() -> Vec<Measurement> {
+    let mut unknown = row(10, CameraId::Camera(1), 3);
+    unknown.turns_known = false;
     let mut v = vec![
         row(10, CameraId::Camera(0), 0),
-        row(10, CameraId::Camera(1), 3),
+        unknown,
         row(10, CameraId::Fused, 3),
         Measurement::empty(11, 0.055, CameraId::Camera(0), 2, Status::Occluded),
     ];
@@ -51,8 +54,8 @@ fn sample_rows() -> Vec<Measurement> {
 fn assert_close(a: &Measurement, b: &Measurement) {
     let s = a.sanitized();
     assert_eq!(
-        (s.frame, s.camera, s.rod, s.status),
-        (b.frame, b.camera, b.rod, b.status)
+        (s.frame, s.camera, s.rod, s.status, s.turns_known),
+        (b.frame, b.camera, b.rod, b.status, b.turns_known)
     );
     for (x, y, tol) in [
         (s.timestamp_s, b.timestamp_s, 1e-9),
@@ -79,11 +82,12 @@ fn csv_round_trip_with_exact_header_and_no_nan() {
     }
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next().unwrap(), CSV_COLUMNS.join(","));
+    assert_eq!(lines.next().unwrap(), OUTPUT_COLUMNS.join(","));
     assert_eq!(
         lines.next().unwrap(),
-        "10,0.050000000,0,0,-12.3457,1.234568,7.517753,-250.125,60.5000,0.9500,ok"
+        "10,0.050000000,0,0,-12.3457,1.234568,7.517753,-250.125,60.5000,0.9500,ok,true"
     );
+    assert!(lines.next().unwrap().ends_with(",ok,false"));
     assert!(text.contains(",fused,3,"));
     assert!(!text.to_lowercase().contains("nan"));
     let back = read_measurements_csv(&path).unwrap();
@@ -114,7 +118,7 @@ fn jsonl_round_trip() {
         .keys()
         .map(String::as_str)
         .collect();
-    let mut want = CSV_COLUMNS.to_vec();
+    let mut want = OUTPUT_COLUMNS.to_vec();
     want.sort_unstable();
     let mut keys_sorted = keys.clone();
     keys_sorted.sort_unstable();
@@ -262,11 +266,14 @@ fn udp_round_trip_on_loopback() {
     let p = decode_udp_packet(&buf[..n]).unwrap();
     assert_eq!(
         (p.version, p.seq, p.frame, p.timestamp_ns),
-        (1, 0, 10, 50_000_000)
+        (2, 0, 10, 50_000_000)
     );
     assert_eq!(p.rows.len(), 3);
     for (a, b) in rows[..3].iter().zip(&p.rows) {
-        assert_eq!((a.camera, a.rod, a.status), (b.camera, b.rod, b.status));
+        assert_eq!(
+            (a.camera, a.rod, a.status, a.turns_known),
+            (b.camera, b.rod, b.status, b.turns_known)
+        );
         assert_eq!(a.position_mm, b.position_mm);
         assert_eq!(a.angle_unwrapped_rad, b.angle_unwrapped_rad);
         assert!((a.quality - b.quality).abs() < 1e-6);
@@ -284,7 +291,7 @@ fn udp_layout_is_fixed_and_decoder_rejects_garbage() {
     let mut out = Vec::new();
     encode_udp_packet(7, &[row(3, CameraId::Fused, 2)], &mut out).unwrap();
     assert_eq!(&out[0..4], b"RTRK");
-    assert_eq!(u16::from_le_bytes([out[4], out[5]]), 1);
+    assert_eq!(u16::from_le_bytes([out[4], out[5]]), 2);
     assert_eq!(u16::from_le_bytes([out[6], out[7]]), 1);
     assert_eq!(u32::from_le_bytes(out[8..12].try_into().unwrap()), 7);
     assert_eq!(u64::from_le_bytes(out[16..24].try_into().unwrap()), 3);
@@ -302,6 +309,29 @@ fn udp_layout_is_fixed_and_decoder_rejects_garbage() {
         -10.345_67
     );
     assert_eq!(out[32 + 52], 0);
+    // Flags: bit 0 turns_known.
+    assert_eq!(out[32 + 53], 1);
+    assert_eq!(&out[32 + 54..32 + 56], &[0, 0]);
+    let mut unknown = row(3, CameraId::Fused, 2);
+    unknown.turns_known = false;
+    unknown.status = Status::Conflict;
+    let mut two = Vec::new();
+    encode_udp_packet(8, &[unknown], &mut two).unwrap();
+    assert_eq!((two[32 + 52], two[32 + 53]), (7, 0));
+    let back = decode_udp_packet(&two).unwrap();
+    assert_eq!(
+        (back.rows[0].status, back.rows[0].turns_known),
+        (Status::Conflict, false)
+    );
+    // A version 1 datagram (flags byte reserved, 0) reads as turns_known.
+    let mut v1 = two.clone();
+    v1[4] = 1;
+    v1[32 + 52] = 0;
+    let back = decode_udp_packet(&v1).unwrap();
+    assert_eq!((back.version, back.rows[0].turns_known), (1, true));
+    let mut v3 = out.clone();
+    v3[4] = 3;
+    assert!(decode_udp_packet(&v3).is_err());
     assert!(decode_udp_packet(&out[..out.len() - 1]).is_err());
     let mut bad = out.clone();
     bad[0] = b'X';
@@ -315,4 +345,40 @@ fn udp_layout_is_fixed_and_decoder_rejects_garbage() {
         .unwrap_err()
         .to_string()
         .contains("status"));
+}
+
+#[test]
+fn files_written_before_turns_known_read_as_known() {
+    // CSV and JSON Lines rows of the old format (no turns_known): read as known.
+    let csv = "frame,timestamp_s,camera,rod,position_mm,angle_rad,angle_unwrapped_rad,\
+               velocity_mm_s,angular_velocity_rad_s,quality,status\n\
+               3,0.015,0,1,1.5,0.5,6.78,0,0,0.95,ok\n";
+    let rows = parse_measurements_csv(csv, Path::new("old.csv")).unwrap();
+    assert!(rows[0].0.turns_known);
+    // New files: both values, and a bad value is named.
+    let csv = "frame,timestamp_s,camera,rod,position_mm,angle_rad,angle_unwrapped_rad,\
+               velocity_mm_s,angular_velocity_rad_s,quality,status,turns_known\n\
+               3,0.015,0,1,1.5,0.5,6.78,0,0,0.95,ok,false\n\
+               4,0.020,0,1,1.5,0.5,6.78,0,0,0.95,conflict,true\n";
+    let rows = parse_measurements_csv(csv, Path::new("new.csv")).unwrap();
+    assert!(!rows[0].0.turns_known);
+    assert!(rows[1].0.turns_known);
+    assert_eq!(rows[1].0.status, Status::Conflict);
+    let bad = csv.replace("ok,false", "ok,maybe");
+    let e = parse_measurements_csv(&bad, Path::new("new.csv"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("turns_known") && e.contains("line 2"), "{e}");
+    let dir = tmpdir("old-jsonl");
+    let path = dir.join("old.jsonl");
+    std::fs::write(
+        &path,
+        r#"{"frame":3,"timestamp_s":0.015,"camera":0,"rod":1,"position_mm":1.5,"angle_rad":0.5,"angle_unwrapped_rad":6.78,"velocity_mm_s":0,"angular_velocity_rad_s":0,"quality":0.95,"status":"ok"}
+{"frame":4,"timestamp_s":0.02,"camera":0,"rod":1,"position_mm":1.5,"angle_rad":0.5,"angle_unwrapped_rad":6.78,"velocity_mm_s":0,"angular_velocity_rad_s":0,"quality":0.95,"status":"predicted","turns_known":false}
+"#,
+    )
+    .unwrap();
+    let rows = read_measurements_jsonl(&path).unwrap();
+    assert!(rows[0].0.turns_known);
+    assert!(!rows[1].0.turns_known);
 }

@@ -28,7 +28,7 @@
 use crate::hooks::{Hooks, NoHooks, Progress};
 use crate::SdkError;
 use rodtrack_core::calib::CalibrationFile;
-use rodtrack_core::{CameraFilter, CameraPipeline, Mode, SetFusion};
+use rodtrack_core::{CameraFilter, CameraPipeline, Measurement, Mode, SetFusion, TurnAnchor};
 use rodtrack_io::runtime::{
     Handoff, LatencyHistogram, LatencySummary, Pipeline, PipelineConfig, PipelineCounters,
     PipelineReport, RunMode, WriteMode,
@@ -71,6 +71,10 @@ pub struct SessionOptions {
     pub config: Option<PipelineConfig>,
     /// How often [`Hooks::progress`] is called (default: 250 ms for recordings, 1 s live).
     pub progress_period: Option<Duration>,
+    /// Turn counts set by hand at given frames (re-anchoring a count that became unknown, see
+    /// [`rodtrack_core::filter::RodFilter::reanchor_turns`]), in every camera's filter and the
+    /// fusion's.
+    pub turn_anchors: Vec<TurnAnchor>,
 }
 
 impl Default for SessionOptions {
@@ -81,6 +85,7 @@ impl Default for SessionOptions {
             max_frames: None,
             config: None,
             progress_period: None,
+            turn_anchors: Vec::new(),
         }
     }
 }
@@ -447,6 +452,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
         }
         if options.filter {
             let mut f = CameraFilter::new(options.mode);
+            f.set_turn_anchors(&options.turn_anchors);
             pipeline
                 .set_camera_filter(
                     index,
@@ -461,9 +467,22 @@ fn run_cameras<S: MeasurementSink + 'static>(
     let warnings = Arc::new(AtomicU64::new(0));
     if options.filter && ncam > 1 {
         let mut fusion = SetFusion::new(options.mode);
+        fusion.set_turn_anchors(&options.turn_anchors);
         let (h, count) = (hooks.clone(), warnings.clone());
+        // The camera rows the fusion overruled, for the stage after it (same thread).
+        let overruled = Arc::new(std::sync::Mutex::new(Vec::with_capacity(64)));
+        let flags = overruled.clone();
+        pipeline.set_camera_rows_after_fusion(Box::new(move |rows: &mut [Measurement]| {
+            if let Ok(list) = flags.lock() {
+                rodtrack_core::fusion::flag_overruled_rows(&list, rows);
+            }
+        }));
         pipeline.set_fusion(Box::new(move |_set, raw, out| {
             fusion.process(raw, out);
+            if let Ok(mut list) = overruled.lock() {
+                list.clear();
+                list.extend_from_slice(fusion.overruled());
+            }
             for d in fusion.disagreements() {
                 let n = count.fetch_add(1, Ordering::Relaxed) + 1;
                 h.warning(

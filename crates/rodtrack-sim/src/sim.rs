@@ -630,6 +630,7 @@ impl Ctx {
                         angular_velocity_rad_s: p.angular_velocity_rad_s,
                         quality: 1.0,
                         status,
+                        turns_known: true,
                     }
                     .sanitized(),
                     visible: status == Status::Ok,

@@ -49,6 +49,34 @@ pub struct Args {
     /// Stop after this many frames per camera.
     #[arg(long)]
     pub max_frames: Option<u64>,
+    /// Re-anchor a rod's turn count by hand: `FRAME:ROD:TURNS` says that at frame FRAME rod
+    /// ROD is at whole turn TURNS (`angle_unwrapped_rad = 2 pi TURNS + angle_rad`), and its
+    /// count is known from there (repeat for several). For a count that became unknown
+    /// (`turns_known` false) when the rod's true turn is known, e.g. at a mark.
+    #[arg(long = "reanchor", value_parser = parse_anchor)]
+    pub reanchor: Vec<rodtrack_core::TurnAnchor>,
+}
+
+/// Parses `FRAME:ROD:TURNS`.
+fn parse_anchor(s: &str) -> std::result::Result<rodtrack_core::TurnAnchor, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let [frame, rod, turns] = parts[..] else {
+        return Err(format!("`{s}`: expected FRAME:ROD:TURNS, e.g. 1200:5:-3"));
+    };
+    Ok(rodtrack_core::TurnAnchor {
+        frame: frame
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{frame}` is not a frame number (in `{s}`)"))?,
+        rod: rod
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{rod}` is not a rod id (in `{s}`)"))?,
+        turns: turns
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{turns}` is not a whole number of turns (in `{s}`)"))?,
+    })
 }
 
 /// Runs the command.
@@ -76,6 +104,7 @@ pub fn run(args: Args) -> Result<()> {
         mode,
         filter: !args.raw,
         max_frames: args.max_frames,
+        turn_anchors: args.reanchor.clone(),
         ..SessionOptions::default()
     };
     let session = Session::open(&cal, &args.inputs, options)?;

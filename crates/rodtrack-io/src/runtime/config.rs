@@ -31,6 +31,11 @@ pub type FrameHookFn = Box<dyn FnMut(&mut FrameBuffer) + Send>;
 /// rows (e.g. `camera = fused`).
 pub type FusionFn = Box<dyn FnMut(&FrameSetInfo, &[Measurement], &mut Vec<Measurement>) + Send>;
 
+/// Run right after the fusion stage on the set's camera rows about to be written, which it may
+/// change (e.g. mark the rows the fusion overruled). Only with [`WriteMode::Set`]: with
+/// [`WriteMode::PerCamera`] the camera rows are written before the set is complete.
+pub type CameraRowsFn = Box<dyn FnMut(&mut [Measurement]) + Send>;
+
 /// How frames are released.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RunMode {

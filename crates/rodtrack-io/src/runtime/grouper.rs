@@ -1,7 +1,7 @@
 //! The output stage: frames of the cameras grouped into frame sets, the fusion, the writes to
 //! the sink and the latency statistics.
 
-use super::config::{FrameSetInfo, FusionFn, Grouping, PipelineConfig, WriteMode};
+use super::config::{CameraRowsFn, FrameSetInfo, FusionFn, Grouping, PipelineConfig, WriteMode};
 use super::latency::{LatencyHistogram, StageHistograms};
 use super::report::{CameraStats, PipelineCounters, PipelineReport};
 use crate::frame::{FrameMeta, Timestamp};
@@ -61,6 +61,7 @@ pub(super) struct Grouper {
     pending: VecDeque<Pending>,
     last_emitted: Option<u64>,
     fusion: Option<FusionFn>,
+    camera_rows: Option<CameraRowsFn>,
     info: FrameSetInfo,
     out: Vec<Measurement>,
     raw: Vec<Measurement>,
@@ -81,6 +82,7 @@ impl Grouper {
         config: PipelineConfig,
         n: usize,
         fusion: Option<FusionFn>,
+        camera_rows: Option<CameraRowsFn>,
         counters: &Arc<PipelineCounters>,
         vec_tx: Sender<Vec<Measurement>>,
     ) -> Self {
@@ -92,6 +94,7 @@ impl Grouper {
             pending: VecDeque::with_capacity(16),
             last_emitted: None,
             fusion,
+            camera_rows,
             info: FrameSetInfo {
                 frame_id: 0,
                 timestamp_ns: Timestamp(0),
@@ -318,6 +321,11 @@ impl Grouper {
             };
             self.fused.clear();
             fusion(&self.info, measured, &mut self.fused);
+            if !per_camera {
+                if let Some(f) = self.camera_rows.as_mut() {
+                    f(&mut self.out);
+                }
+            }
             self.out.extend_from_slice(&self.fused);
         }
         if !self.out.is_empty() {

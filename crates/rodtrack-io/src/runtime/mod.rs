@@ -79,8 +79,8 @@ mod worker;
 
 pub use budget::{track_memory_budget, BASE_BYTES};
 pub use config::{
-    CameraFilterFn, FrameHookFn, FrameSetInfo, FusionFn, Grouping, Handoff, PipelineConfig,
-    ProcessFn, RunMode, WriteMode,
+    CameraFilterFn, CameraRowsFn, FrameHookFn, FrameSetInfo, FusionFn, Grouping, Handoff,
+    PipelineConfig, ProcessFn, RunMode, WriteMode,
 };
 pub use latency::{LatencyHistogram, LatencyStages, LatencySummary};
 pub use report::{CameraCounters, CameraStats, PipelineCounters, PipelineReport};
@@ -114,6 +114,7 @@ pub struct Pipeline {
     config: PipelineConfig,
     cameras: Vec<Camera>,
     fusion: Option<FusionFn>,
+    camera_rows: Option<CameraRowsFn>,
     stop: Arc<AtomicBool>,
     counters: Arc<PipelineCounters>,
 }
@@ -174,6 +175,7 @@ impl Pipeline {
             config,
             cameras: Vec::new(),
             fusion: None,
+            camera_rows: None,
             stop: Arc::new(AtomicBool::new(false)),
             counters: Arc::new(PipelineCounters::default()),
         }
@@ -221,6 +223,12 @@ impl Pipeline {
         self.fusion = Some(fusion);
     }
 
+    /// Sets the stage that sees (and may change) each set's camera rows after the fusion (see
+    /// [`CameraRowsFn`]; [`WriteMode::Set`] only).
+    pub fn set_camera_rows_after_fusion(&mut self, f: CameraRowsFn) {
+        self.camera_rows = Some(f);
+    }
+
     /// The stop flag: set it (e.g. from a Ctrl-C handler) to end the run cleanly.
     pub fn stop_flag(&self) -> Arc<AtomicBool> {
         self.stop.clone()
@@ -264,7 +272,14 @@ impl Pipeline {
         let n = self.cameras.len();
         let (main_tx, main_rx) = bounded::<ToMain>(256 * n);
         let (vec_tx, vec_rx) = bounded::<Vec<Measurement>>(128 * n);
-        let grouper = Grouper::new(self.config, n, self.fusion.take(), &counters, vec_tx);
+        let grouper = Grouper::new(
+            self.config,
+            n,
+            self.fusion.take(),
+            self.camera_rows.take(),
+            &counters,
+            vec_tx,
+        );
         let threads = self.spawn(&counters, &main_tx, &vec_rx, |_| ToCaller(main_tx.clone()))?;
         drop(main_tx);
         let mut threads = threads;
@@ -288,7 +303,14 @@ impl Pipeline {
         let n = self.cameras.len();
         let (main_tx, main_rx) = bounded::<ToMain>(4 * n);
         let (vec_tx, vec_rx) = bounded::<Vec<Measurement>>(128 * n);
-        let grouper = Grouper::new(self.config, n, self.fusion.take(), &counters, vec_tx);
+        let grouper = Grouper::new(
+            self.config,
+            n,
+            self.fusion.take(),
+            self.camera_rows.take(),
+            &counters,
+            vec_tx,
+        );
         let shared = Arc::new(Mutex::new(Shared {
             grouper,
             sink: Some(sink),

@@ -1,14 +1,16 @@
 //! CSV measurement files: writer and reader.
 //!
-//! Format: a header line exactly [`CSV_COLUMNS`] joined by commas, then one line per row;
-//! `camera` is a camera index or `fused`, `status` a status name; numbers in fixed notation
-//! with the decimals of [`super::decimals`]; `\n` line ends. The reader also accepts extra
-//! columns (a `visible` column of `true`/`false`/`1`/`0` is returned, others are ignored),
-//! columns in any order, and `\r\n` line ends.
+//! Format: a header line exactly [`CSV_COLUMNS`] and [`TURNS_KNOWN_COLUMN`] joined by commas,
+//! then one line per row; `camera` is a camera index or `fused`, `status` a status name,
+//! `turns_known` `true` or `false`; numbers in fixed notation with the decimals of
+//! [`super::decimals`]; `\n` line ends. The reader also accepts files without the
+//! `turns_known` column (written before it existed: read as `true`), extra columns (a
+//! `visible` column of `true`/`false`/`1`/`0` is returned, others are ignored), columns in
+//! any order, and `\r\n` line ends.
 
 use super::{parse_camera, push_csv_row, MeasurementSink};
 use crate::IoError;
-use rodtrack_core::measurement::CSV_COLUMNS;
+use rodtrack_core::measurement::{CSV_COLUMNS, OUTPUT_COLUMNS, TURNS_KNOWN_COLUMN};
 use rodtrack_core::{Measurement, Status};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -95,7 +97,7 @@ impl<W: Write + Send> CsvSink<W> {
             line: String::with_capacity(4096),
             flush_each_write: true,
         };
-        let header = CSV_COLUMNS.join(",") + "\n";
+        let header = OUTPUT_COLUMNS.join(",") + "\n";
         s.out.write_all(header.as_bytes())?;
         s.out.flush()?;
         Ok(s)
@@ -182,6 +184,7 @@ pub fn parse_measurements_csv(
         })?;
     }
     let visible_idx = names.iter().position(|n| *n == "visible");
+    let turns_idx = names.iter().position(|n| *n == TURNS_KNOWN_COLUMN);
     let mut rows = Vec::new();
     for (i, line) in lines {
         let ln = i + 1;
@@ -236,6 +239,16 @@ pub fn parse_measurements_csv(
             angular_velocity_rad_s: num(8)?,
             quality: num(9)?,
             status,
+            turns_known: match turns_idx {
+                None => true,
+                Some(k) => parse_bool(f[k]).ok_or_else(|| {
+                    err(
+                        ln,
+                        TURNS_KNOWN_COLUMN,
+                        format!("`{}` is not true/false/1/0", f[k]),
+                    )
+                })?,
+            },
         };
         let visible =
             match visible_idx {

@@ -1,14 +1,15 @@
 //! JSON Lines measurement files: one object per row with the CSV column names, e.g.
 //! `{"frame":12,"timestamp_s":0.060000000,"camera":0,"rod":3,"position_mm":-12.5000,
 //! "angle_rad":1.570796,"angle_unwrapped_rad":7.853982,"velocity_mm_s":0.000,
-//! "angular_velocity_rad_s":0.0000,"quality":0.9500,"status":"ok"}`.
+//! "angular_velocity_rad_s":0.0000,"quality":0.9500,"status":"ok","turns_known":true}`.
 //! `camera` is a number (`0`, `1`, like `rod`) for a camera's rows and the string `"fused"`
-//! for fused rows (the reader accepts a camera index as a string too).
+//! for fused rows (the reader accepts a camera index as a string too). `turns_known` is a
+//! boolean; the reader takes a row without it (a file written before it existed) as `true`.
 
 use super::csv::TextOut;
 use super::{fields, parse_camera, MeasurementSink};
 use crate::IoError;
-use rodtrack_core::measurement::CSV_COLUMNS;
+use rodtrack_core::measurement::OUTPUT_COLUMNS;
 use rodtrack_core::{Measurement, Status};
 use std::fs::File;
 use std::io::Write;
@@ -18,7 +19,7 @@ use std::path::{Path, PathBuf};
 pub struct JsonlSink<W: Write + Send = File> {
     out: TextOut<W>,
     line: String,
-    fields: [String; 11],
+    fields: [String; 12],
     flush_each_write: bool,
 }
 
@@ -56,7 +57,7 @@ impl<W: Write + Send> MeasurementSink for JsonlSink<W> {
             fields(m, &mut self.fields);
             self.line.clear();
             self.line.push('{');
-            for (i, (name, value)) in CSV_COLUMNS.iter().zip(&self.fields).enumerate() {
+            for (i, (name, value)) in OUTPUT_COLUMNS.iter().zip(&self.fields).enumerate() {
                 if i > 0 {
                     self.line.push(',');
                 }
@@ -135,6 +136,11 @@ pub fn parse_measurement_json(
         Some(serde_json::Value::Bool(b)) => Some(*b),
         Some(_) => return Err(err("visible", "not a boolean".into())),
     };
+    let turns_known = match obj.get("turns_known") {
+        None | Some(serde_json::Value::Null) => true,
+        Some(serde_json::Value::Bool(b)) => *b,
+        Some(_) => return Err(err("turns_known", "not a boolean".into())),
+    };
     Ok((
         Measurement {
             frame: uint("frame")?,
@@ -148,6 +154,7 @@ pub fn parse_measurement_json(
             angular_velocity_rad_s: num("angular_velocity_rad_s")?,
             quality: num("quality")?,
             status,
+            turns_known,
         },
         visible,
     ))

@@ -14,8 +14,8 @@ pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
     decode_udp_packet, encode_udp_packet, status_code, status_from_code, UdpPacket, UdpSink,
-    UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_HEADER_BYTES, UDP_MAGIC, UDP_MAX_ROWS, UDP_ROW_BYTES,
-    UDP_VERSION,
+    UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_FLAG_TURNS_KNOWN, UDP_HEADER_BYTES, UDP_MAGIC,
+    UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
 };
 
 use crate::IoError;
@@ -231,12 +231,13 @@ pub(crate) fn push_csv_row(out: &mut String, m: &Measurement) {
         out.push(',');
     }
     out.push_str(m.status.name());
-    out.push('\n');
+    out.push_str(if m.turns_known { ",true\n" } else { ",false\n" });
 }
 
-/// The row's numbers formatted as in files, in [`rodtrack_core::measurement::CSV_COLUMNS`]
-/// order (after sanitizing), with the camera as its Display and the status as its name.
-pub(crate) fn fields(m: &Measurement, out: &mut [String; 11]) {
+/// The row's numbers formatted as in files, in [`rodtrack_core::measurement::OUTPUT_COLUMNS`]
+/// order (after sanitizing), with the camera as its Display, the status as its name and
+/// `turns_known` as `true` or `false`.
+pub(crate) fn fields(m: &Measurement, out: &mut [String; 12]) {
     use decimals::*;
     let m = m.sanitized();
     for s in out.iter_mut() {
@@ -257,6 +258,7 @@ pub(crate) fn fields(m: &Measurement, out: &mut [String; 11]) {
     );
     push_fixed(&mut out[9], m.quality, QUALITY);
     out[10].push_str(m.status.name());
+    out[11].push_str(if m.turns_known { "true" } else { "false" });
 }
 
 /// Parses a camera column: a camera index or `fused`.
@@ -378,7 +380,7 @@ mod tests {
 
     #[test]
     fn csv_row_is_the_fields_joined() {
-        let mut fs: [String; 11] = Default::default();
+        let mut fs: [String; 12] = Default::default();
         let mut line = String::new();
         for (k, status) in [Status::Ok, Status::Occluded, Status::BadFrame]
             .into_iter()

@@ -4,12 +4,12 @@
 //! measured and then the set's fused rows ([`crate::runtime::WriteMode::PerCamera`], `rodtrack
 //! track` on live sources): rows carry their camera, so a receiver can take either.
 //!
-//! Layout (version 1), all little endian:
+//! Layout (version 2), all little endian:
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 4 | magic `RTRK` (bytes `52 54 52 4B`) |
-//! | 4 | 2 | version, u16 = 1 |
+//! | 4 | 2 | version, u16 = 2 |
 //! | 6 | 2 | row count `n`, u16 |
 //! | 8 | 4 | sequence number, u32 (per sink, +1 per datagram, wraps) |
 //! | 12 | 4 | reserved, 0 |
@@ -29,8 +29,12 @@
 //! | 32 | 8 | velocity_mm_s, f64 |
 //! | 40 | 8 | angular_velocity_rad_s, f64 |
 //! | 48 | 4 | quality, f32 |
-//! | 52 | 1 | status code: 0 ok, 1 not_found, 2 occluded, 3 out_of_view, 4 predicted, 5 lost, 6 bad_frame |
-//! | 53 | 3 | reserved, 0 |
+//! | 52 | 1 | status code: 0 ok, 1 not_found, 2 occluded, 3 out_of_view, 4 predicted, 5 lost, 6 bad_frame, 7 conflict |
+//! | 53 | 1 | flags: bit 0 `turns_known`; the other bits 0 |
+//! | 54 | 2 | reserved, 0 |
+//!
+//! Version 2 added the flags byte (version 1 had 3 reserved bytes there) and status 7; the
+//! decoder reads both, a version 1 row as `turns_known = true`.
 //!
 //! 8 rods x (2 cameras + fused) = 24 rows make 1376 bytes, one Ethernet frame.
 
@@ -42,7 +46,9 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 /// Datagram magic.
 pub const UDP_MAGIC: [u8; 4] = *b"RTRK";
 /// Layout version.
-pub const UDP_VERSION: u16 = 1;
+pub const UDP_VERSION: u16 = 2;
+/// Bit of a row's flags byte (offset 53): [`Measurement::turns_known`].
+pub const UDP_FLAG_TURNS_KNOWN: u8 = 1;
 /// Header size, bytes.
 pub const UDP_HEADER_BYTES: usize = 32;
 /// Row size, bytes.
@@ -54,7 +60,7 @@ pub const UDP_MAX_ROWS: usize = (65_507 - UDP_HEADER_BYTES) / UDP_ROW_BYTES;
 /// Default destination.
 pub const UDP_DEFAULT_ADDR: &str = "127.0.0.1:9870";
 
-const STATUSES: [Status; 7] = [
+const STATUSES: [Status; 8] = [
     Status::Ok,
     Status::NotFound,
     Status::Occluded,
@@ -62,6 +68,7 @@ const STATUSES: [Status; 7] = [
     Status::Predicted,
     Status::Lost,
     Status::BadFrame,
+    Status::Conflict,
 ];
 
 /// The status code of the UDP layout.
@@ -134,7 +141,12 @@ pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> R
             out.extend_from_slice(&v.to_le_bytes());
         }
         out.extend_from_slice(&(r.quality as f32).to_le_bytes());
-        out.extend_from_slice(&[status_code(r.status), 0, 0, 0]);
+        let flags = if r.turns_known {
+            UDP_FLAG_TURNS_KNOWN
+        } else {
+            0
+        };
+        out.extend_from_slice(&[status_code(r.status), flags, 0, 0]);
     }
     Ok(())
 }
@@ -157,9 +169,9 @@ pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
         return Err(IoError::Packet("bad magic (expected RTRK)".into()));
     }
     let version = u16::from_le_bytes(le(b, 4));
-    if version != UDP_VERSION {
+    if version != 1 && version != UDP_VERSION {
         return Err(IoError::Packet(format!(
-            "version {version}, this decoder reads {UDP_VERSION}"
+            "version {version}, this decoder reads 1 to {UDP_VERSION}"
         )));
     }
     let n = u16::from_le_bytes(le(b, 6)) as usize;
@@ -197,6 +209,7 @@ pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
             angular_velocity_rad_s: f(40),
             quality: f64::from(f32::from_le_bytes(le(r, 48))),
             status,
+            turns_known: version == 1 || r[53] & UDP_FLAG_TURNS_KNOWN != 0,
         });
     }
     Ok(UdpPacket {

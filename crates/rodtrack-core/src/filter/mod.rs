@@ -83,243 +83,19 @@
 //!
 //! The filter allocates nothing: its whole state is a few numbers per rod.
 
+mod axis;
+mod bank;
+mod config;
+mod turns;
+
 pub use crate::angle::wrap_pi;
 use crate::angle::{unwrap_near, wrap_2pi};
 use crate::measurement::{Measurement, Status};
-
-/// Tuning of a [`RodFilter`]. All rates come from the measurement timestamps, not from a fixed
-/// frame rate; `nominal_dt_s` is only used when a frame's time step is not usable.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FilterConfig {
-    /// Measurement noise std of the position at quality 1, mm. Default 0.1: enhanced mode
-    /// measures 0.02 mm on the simulator; give 0.3 for paper mode (0.28 mm).
-    pub position_noise_mm: f64,
-    /// Measurement noise std of the angle at quality 1, rad. Default 0.004: enhanced mode
-    /// measures 0.002 rad; give 0.013 for paper mode (the paper's figure).
-    pub angle_noise_rad: f64,
-    /// Process noise: std of the jerk (rate of change of the acceleration) the model follows,
-    /// mm/s^3. Default 2e6: a hand shot at 100 m/s^2 and 6 Hz changes its acceleration at
-    /// about 4e6 mm/s^3; the model tracks such motion with almost no lag.
-    pub jerk_std_mm_s3: f64,
-    /// Process noise: std of the angular jerk, rad/s^3. Default 1e5 (a spin at 3000 rad/s^2
-    /// and 5 Hz has 1e5 rad/s^3).
-    pub angular_jerk_std_rad_s3: f64,
-    /// Longest time an estimated acceleration is extrapolated, s; the rate holds after it.
-    /// Default 0.005 (1 frame at 200 fps): through an occlusion the prediction continues at
-    /// constant speed, since the acceleration estimate is noisy and the gate's physical bound
-    /// covers what the rod may do meanwhile.
-    pub accel_horizon_s: f64,
-    /// Physical bound of the linear acceleration, mm/s^2: widens the gate by
-    /// `max_accel tau^2 / 2`. Default 100 000 (100 m/s^2, a hard hand shot).
-    pub max_accel_mm_s2: f64,
-    /// Physical bound of the angular acceleration, rad/s^2. Default 3000 (a hand spin reaching
-    /// 3000 rpm in 0.1 s).
-    pub max_angular_accel_rad_s2: f64,
-    /// Statistical part of the gate, in stds of the innovation. Default 4.
-    pub gate_sigma: f64,
-    /// Cap of the position gate, mm. Default 3.5: below one barcode cell (4 mm, the size of a
-    /// wrong correlation peak) by 5 noise stds.
-    pub max_position_gate_mm: f64,
-    /// Cap of the angle gate, rad. Default 0.15: below one Gray step (2 pi / 32 = 0.196) and a
-    /// stripe period (pi / 4) by more than 3 noise stds.
-    pub max_angle_gate_rad: f64,
-    /// Measurements with a lower quality are not used. Default 0.2.
-    pub min_quality: f64,
-    /// Longest coast on the prediction before the rod is `lost`, s. Default 0.1 (20 frames at
-    /// 200 fps): the angle prediction is then still far inside half a turn for spins at
-    /// constant speed, while a hand that covers the rod longer may have turned it freely.
-    pub max_coast_s: f64,
-    /// Velocity prior std of a new candidate track (first frame after loss), mm/s. Default 100:
-    /// a still rod's second frame confirms at once; a faster one takes a two-point start.
-    pub reacquire_velocity_std_mm_s: f64,
-    /// Angular velocity prior std of a new candidate track, rad/s. Default 4.
-    pub reacquire_angular_velocity_std_rad_s: f64,
-    /// Largest speed a two-point start accepts, mm/s. Default 6000.
-    pub max_velocity_mm_s: f64,
-    /// Largest angular speed a two-point start accepts, rad/s (it is also limited by
-    /// `pi / dt`). Default 600 (5730 rpm).
-    pub max_angular_velocity_rad_s: f64,
-    /// Measurements that agree among themselves but not with a coasting track replace it after
-    /// this many frames, even when the track's prediction is confident. Default 4 (20 ms at
-    /// 200 fps): a decoder that stays wrong by the same amount for 4 frames wins, a track that
-    /// diverged is replaced after 4 frames.
-    pub override_points: u32,
-    /// Require one confirming measurement before a new track reports `ok`. Default true.
-    pub confirm_reacquisition: bool,
-    /// Time step used when a frame's timestamp does not advance, s. Default 0.005 (200 fps).
-    pub nominal_dt_s: f64,
-}
-
-impl Default for FilterConfig {
-    fn default() -> Self {
-        FilterConfig {
-            position_noise_mm: 0.1,
-            angle_noise_rad: 0.004,
-            jerk_std_mm_s3: 2e6,
-            angular_jerk_std_rad_s3: 1e5,
-            accel_horizon_s: 0.005,
-            max_accel_mm_s2: 100_000.0,
-            max_angular_accel_rad_s2: 3000.0,
-            gate_sigma: 4.0,
-            max_position_gate_mm: 3.5,
-            max_angle_gate_rad: 0.15,
-            min_quality: 0.2,
-            max_coast_s: 0.1,
-            reacquire_velocity_std_mm_s: 100.0,
-            reacquire_angular_velocity_std_rad_s: 4.0,
-            max_velocity_mm_s: 6000.0,
-            max_angular_velocity_rad_s: 600.0,
-            override_points: 4,
-            confirm_reacquisition: true,
-            nominal_dt_s: 0.005,
-        }
-    }
-}
-
-/// Why the last measurement given to [`RodFilter::update`] was not accepted.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Rejection {
-    /// The row's own status was not `ok`.
-    NotMeasured(Status),
-    /// The row's quality was below [`FilterConfig::min_quality`].
-    LowQuality(f64),
-    /// The timestamp did not advance past the previous row's.
-    Timestamp {
-        /// The previous row's timestamp, s.
-        previous_s: f64,
-        /// This row's, s.
-        got_s: f64,
-    },
-    /// The position is too far from the prediction.
-    PositionGate {
-        /// Measurement minus prediction, mm.
-        innovation_mm: f64,
-        /// The gate it failed, mm.
-        gate_mm: f64,
-    },
-    /// The angle (wrapped) is too far from the prediction.
-    AngleGate {
-        /// Measurement minus prediction, wrapped to `(-pi, pi]`, rad.
-        innovation_rad: f64,
-        /// The gate it failed, rad.
-        gate_rad: f64,
-    },
-    /// Accepted only into a new candidate track that still waits for a confirming measurement.
-    Unconfirmed,
-}
-
-impl std::fmt::Display for Rejection {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match *self {
-            Rejection::NotMeasured(s) => write!(f, "no measurement ({s})"),
-            Rejection::LowQuality(q) => write!(f, "quality {q:.2} too low"),
-            Rejection::Timestamp { previous_s, got_s } => {
-                write!(f, "timestamp {got_s} s does not follow {previous_s} s")
-            }
-            Rejection::PositionGate {
-                innovation_mm,
-                gate_mm,
-            } => write!(
-                f,
-                "position {innovation_mm:+.2} mm from the prediction (gate {gate_mm:.2} mm)"
-            ),
-            Rejection::AngleGate {
-                innovation_rad,
-                gate_rad,
-            } => write!(
-                f,
-                "angle {innovation_rad:+.3} rad from the prediction (gate {gate_rad:.3} rad)"
-            ),
-            Rejection::Unconfirmed => f.write_str("new track not yet confirmed"),
-        }
-    }
-}
-
-/// One constant-acceleration Kalman axis: value, rate, acceleration and their covariance.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Axis {
-    s: [f64; 3],
-    p: [[f64; 3]; 3],
-}
-
-// 3x3 matrix algebra reads best with explicit indices.
-#[allow(clippy::needless_range_loop)]
-impl Axis {
-    /// A state with independent variances.
-    fn new(s: [f64; 3], var: [f64; 3]) -> Axis {
-        Axis {
-            s,
-            p: [[var[0], 0.0, 0.0], [0.0, var[1], 0.0], [0.0, 0.0, var[2]]],
-        }
-    }
-
-    fn x(&self) -> f64 {
-        self.s[0]
-    }
-
-    fn v(&self) -> f64 {
-        self.s[1]
-    }
-
-    /// Variance of the value.
-    fn var(&self) -> f64 {
-        self.p[0][0]
-    }
-
-    /// The state `dt` later, with a jerk of variance `q` held over `dt`. The acceleration acts
-    /// for at most `horizon` (then the rate holds): extrapolating a noisy acceleration through a
-    /// long occlusion would do more harm than good.
-    fn predict(&self, dt: f64, q: f64, horizon: f64) -> Axis {
-        let h = dt.min(horizon);
-        let f = [
-            [1.0, dt, h * dt - 0.5 * h * h],
-            [0.0, 1.0, h],
-            [0.0, 0.0, 1.0],
-        ];
-        let half = 0.5 * dt * dt;
-        let g = [half * dt / 3.0, half, dt];
-        let mut out = Axis::default();
-        for i in 0..3 {
-            out.s[i] = (0..3).map(|k| f[i][k] * self.s[k]).sum();
-        }
-        // F P
-        let mut fp = [[0.0; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                fp[i][j] = (0..3).map(|k| f[i][k] * self.p[k][j]).sum();
-            }
-        }
-        // F P F^T + q g g^T
-        for i in 0..3 {
-            for j in 0..3 {
-                out.p[i][j] = (0..3).map(|k| fp[i][k] * f[j][k]).sum::<f64>() + q * g[i] * g[j];
-            }
-        }
-        out
-    }
-
-    /// Kalman update of the value with innovation `nu` and measurement variance `r`.
-    fn update(&mut self, nu: f64, r: f64) {
-        let s = self.p[0][0] + r;
-        let k = [self.p[0][0] / s, self.p[1][0] / s, self.p[2][0] / s];
-        let row = self.p[0];
-        for i in 0..3 {
-            self.s[i] += k[i] * nu;
-            for j in 0..3 {
-                self.p[i][j] -= k[i] * row[j];
-            }
-        }
-    }
-}
-
-/// A track: both axes at the time of their last update.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Track {
-    pos: Axis,
-    ang: Axis,
-    t: f64,
-    quality: f64,
-}
+use axis::{Axis, Track};
+pub use bank::FilterBank;
+pub use config::{FilterConfig, Rejection};
+use turns::TurnCount;
+pub use turns::TurnStats;
 
 /// A track not yet confirmed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -327,6 +103,9 @@ struct Candidate {
     track: Track,
     /// Measurements taken (1 after a start, 2 after a two-point start).
     points: u32,
+    /// Its rate comes from a two-point start over a step the speed bound does not
+    /// disambiguate.
+    ambiguous: bool,
 }
 
 /// The measurement as the filter uses it.
@@ -362,6 +141,17 @@ pub struct RodFilter {
     turn_ref: Option<f64>,
     last_t: Option<f64>,
     rejection: Option<Rejection>,
+    /// Whether the turn count is known, and its counters.
+    turns: TurnCount,
+    /// The confirmed track rests on one measurement only (the run's first frame, confirmed at
+    /// once by its quality or by agreeing cameras): the next measurement that fails its gate
+    /// drops it.
+    provisional: bool,
+    /// The run's first frame was confirmed at once already (it happens once per run).
+    first_confirmed: bool,
+    /// A measurement contradicted the confirmed track's prediction since its last update: the
+    /// prediction's turn count is in doubt until the track takes a measurement again.
+    contradicted: bool,
 }
 
 impl RodFilter {
@@ -374,6 +164,10 @@ impl RodFilter {
             turn_ref: None,
             last_t: None,
             rejection: None,
+            turns: TurnCount::default(),
+            provisional: false,
+            first_confirmed: false,
+            contradicted: false,
         }
     }
 
@@ -510,6 +304,13 @@ impl RodFilter {
     /// `position_mm`, `angle_rad`, `quality` and `status` are read: the turn count is the
     /// filter's own.
     pub fn update(&mut self, m: &Measurement) -> Measurement {
+        self.update_corroborated(m, false)
+    }
+
+    /// [`RodFilter::update`] for a row that another measurement of the same frame corroborates
+    /// (a fused row of cameras that agree): on the run's first frame such a row is confirmed
+    /// at once (see [`FilterConfig::confirm_quality`]).
+    pub fn update_corroborated(&mut self, m: &Measurement, corroborated: bool) -> Measurement {
         let m = m.sanitized();
         self.rejection = None;
         let t = m.timestamp_s;
@@ -530,6 +331,8 @@ impl RodFilter {
             if t - tr.t > self.cfg.max_coast_s {
                 self.turn_ref = Some(tr.ang.x());
                 self.main = None;
+                self.provisional = false;
+                self.turns_lost();
             }
         }
         if let Some(c) = self.candidate {
@@ -552,12 +355,25 @@ impl RodFilter {
             let g = self.gate(&tr, &o);
             match g.result {
                 Ok(()) => {
+                    self.turns_on_update(&tr, o.t);
                     let tr = Self::apply(&g, &o);
                     self.main = Some(tr);
                     self.candidate = None;
-                    return self.row(&m, &tr, Status::Ok, o.quality);
+                    self.provisional = false;
+                    self.contradicted = false;
+                    return self.row(&m, &tr, Status::Ok, o.quality, self.turns.known);
                 }
-                Err(e) => self.rejection = Some(e),
+                Err(e) => {
+                    self.rejection = Some(e);
+                    self.contradicted = true;
+                    if self.provisional {
+                        // A first frame confirmed on its own is contradicted: start again.
+                        self.main = None;
+                        self.provisional = false;
+                        self.turns.anchored = false;
+                        self.turns.known = false;
+                    }
+                }
             }
         }
 
@@ -567,13 +383,25 @@ impl RodFilter {
             (None, Some(c)) => Some(self.predict(&c.track, t).ang.x()),
             (None, None) => self.turn_ref,
         };
-        if self.feed_candidate(&o, reference) {
+        let at_once = !self.first_confirmed
+            && self.main.is_none()
+            && self.candidate.is_none()
+            && self.turn_ref.is_none()
+            && (corroborated || self.cfg.confirm_quality.is_some_and(|q| o.quality >= q));
+        if self.feed_candidate(&o, reference, at_once) {
             if let Some(c) = self.candidate {
-                if c.points >= self.cfg.override_points || self.may_replace_main(&c.track) {
+                let replaces = self.may_replace_main(&c.track);
+                if c.points >= self.cfg.override_points || replaces {
+                    self.turns_on_promote(&c, !replaces);
                     self.candidate = None;
                     self.main = Some(c.track);
+                    self.contradicted = false;
+                    self.provisional = at_once && self.cfg.confirm_reacquisition;
+                    self.first_confirmed |= at_once;
+                    self.turns_apply_pending();
                     self.rejection = None;
-                    return self.row(&m, &c.track, Status::Ok, o.quality);
+                    let tr = self.main.unwrap_or(c.track);
+                    return self.row(&m, &tr, Status::Ok, o.quality, self.turns.known);
                 }
             }
         }
@@ -606,8 +434,9 @@ impl RodFilter {
                     + c.max_angular_accel_rad_s2 * half_tau2
     }
 
-    /// Gives a measurement to the candidate track; true when the candidate is confirmed.
-    fn feed_candidate(&mut self, o: &Obs, reference: Option<f64>) -> bool {
+    /// Gives a measurement to the candidate track; true when the candidate is confirmed
+    /// (`at_once`: a new candidate is confirmed by its first measurement).
+    fn feed_candidate(&mut self, o: &Obs, reference: Option<f64>, at_once: bool) -> bool {
         let c = &self.cfg;
         // A new track's acceleration prior: small, because the gate adds the physical bound
         // `max_accel tau^2 / 2` anyway; a wide prior would open the gate past a Gray step.
@@ -636,17 +465,19 @@ impl RodFilter {
                     quality: o.quality,
                 },
                 points: 1,
+                ambiguous: false,
             }
         };
         let Some(cand) = self.candidate else {
             self.candidate = Some(start(o.angle_rad));
-            return !c.confirm_reacquisition;
+            return !c.confirm_reacquisition || at_once;
         };
         let g = self.gate(&cand.track, o);
         if g.result.is_ok() {
             self.candidate = Some(Candidate {
                 track: Self::apply(&g, o),
                 points: cand.points + 1,
+                ambiguous: cand.ambiguous,
             });
             return true;
         }
@@ -690,6 +521,7 @@ impl RodFilter {
                         quality: o.quality,
                     },
                     points: 2,
+                    ambiguous: !self.step_unambiguous(dt),
                 });
                 return false;
             }
@@ -699,7 +531,14 @@ impl RodFilter {
         !c.confirm_reacquisition
     }
 
-    fn row(&self, m: &Measurement, tr: &Track, status: Status, quality: f64) -> Measurement {
+    fn row(
+        &self,
+        m: &Measurement,
+        tr: &Track,
+        status: Status,
+        quality: f64,
+        turns_known: bool,
+    ) -> Measurement {
         Measurement {
             frame: m.frame,
             timestamp_s: m.timestamp_s,
@@ -712,6 +551,7 @@ impl RodFilter {
             angular_velocity_rad_s: tr.ang.v(),
             quality: quality.clamp(0.0, 1.0),
             status,
+            turns_known,
         }
         .sanitized()
     }
@@ -722,77 +562,15 @@ impl RodFilter {
         if let Some(tr) = &self.main {
             let p = self.predict(tr, t.max(tr.t));
             let fade = (1.0 - (t - tr.t) / self.cfg.max_coast_s).clamp(0.0, 1.0);
-            return self.row(m, &p, Status::Predicted, tr.quality * fade);
+            let known = self.turns.known && !self.contradicted && self.carried_exactly(tr, t);
+            return self.row(m, &p, Status::Predicted, tr.quality * fade, known);
         }
         if let Some(c) = &self.candidate {
             let p = self.predict(&c.track, t.max(c.track.t));
-            return self.row(m, &p, Status::Predicted, 0.25 * c.track.quality);
+            // Only the run's first track counts from its own first measurement.
+            let known = !self.turns.anchored && !c.ambiguous && self.turns.pending_turns.is_none();
+            return self.row(m, &p, Status::Predicted, 0.25 * c.track.quality, known);
         }
         Measurement::empty(m.frame, m.timestamp_s, m.camera, m.rod, Status::Lost)
-    }
-}
-
-/// One [`RodFilter`] per rod, found by rod id. Filters are created the first time a rod is seen
-/// (the only allocation); give it the rods up front with [`FilterBank::with_rods`] to avoid even
-/// that.
-#[derive(Debug, Clone)]
-pub struct FilterBank {
-    cfg: FilterConfig,
-    filters: Vec<(u32, RodFilter)>,
-}
-
-impl FilterBank {
-    /// An empty bank.
-    pub fn new(cfg: FilterConfig) -> FilterBank {
-        FilterBank {
-            cfg,
-            filters: Vec::new(),
-        }
-    }
-
-    /// A bank with a filter for each of `rods`.
-    pub fn with_rods(cfg: FilterConfig, rods: impl IntoIterator<Item = u32>) -> FilterBank {
-        let mut b = FilterBank::new(cfg);
-        for r in rods {
-            b.filter_mut(r);
-        }
-        b
-    }
-
-    /// The filter of `rod`, if it exists.
-    pub fn filter(&self, rod: u32) -> Option<&RodFilter> {
-        self.filters.iter().find(|(r, _)| *r == rod).map(|(_, f)| f)
-    }
-
-    /// The filter of `rod`, created when missing.
-    pub fn filter_mut(&mut self, rod: u32) -> &mut RodFilter {
-        let i = match self.filters.iter().position(|(r, _)| *r == rod) {
-            Some(i) => i,
-            None => {
-                self.filters.push((rod, RodFilter::new(self.cfg)));
-                self.filters.len() - 1
-            }
-        };
-        &mut self.filters[i].1
-    }
-
-    /// Filters one row through its rod's filter. The row of a bad frame stays `bad_frame`
-    /// (quality 0) after the filter: the filter coasts through it, but the output must say
-    /// that the frame was unusable.
-    pub fn update(&mut self, m: &Measurement) -> Measurement {
-        let mut out = self.filter_mut(m.rod).update(m);
-        if m.status == crate::Status::BadFrame {
-            out.status = crate::Status::BadFrame;
-            out.quality = 0.0;
-        }
-        out
-    }
-
-    /// Checks a row against its rod's filter (see [`RodFilter::check`]).
-    pub fn check(&self, m: &Measurement) -> Result<(), Rejection> {
-        match self.filter(m.rod) {
-            Some(f) => f.check(m),
-            None => Err(Rejection::Unconfirmed),
-        }
     }
 }
