@@ -69,6 +69,9 @@ class Rows:
     @property
     def status(self) -> npt.NDArray[np.uint8]:
         """Whether to trust the values: an index into ``STATUS_NAMES`` (0 = ok)."""
+    @property
+    def turns_known(self) -> npt.NDArray[np.bool_]:
+        """Whether ``angle_unwrapped_rad`` counts the whole turns for sure (false after a stretch in which the count could have slipped, until it is re-anchored)."""
     def to_dict(self) -> Dict[str, np.ndarray]:
         """Every column by name, as numpy arrays."""
     def status_names(self) -> List[str]:

@@ -9,7 +9,7 @@
 use rodtrack_core::{CameraId, Measurement, Status};
 
 /// The status names by code: `rows.status[i]` is an index into this list.
-pub const STATUS_NAMES: [&str; 7] = [
+pub const STATUS_NAMES: [&str; 8] = [
     "ok",
     "not_found",
     "occluded",
@@ -17,6 +17,7 @@ pub const STATUS_NAMES: [&str; 7] = [
     "predicted",
     "lost",
     "bad_frame",
+    "conflict",
 ];
 
 /// The camera code of fused rows in `rows.camera` (camera rows carry the camera's index).
@@ -32,7 +33,8 @@ pub fn status_code(status: Status) -> u8 {
         | Status::OutOfView
         | Status::Predicted
         | Status::Lost
-        | Status::BadFrame => status.name(),
+        | Status::BadFrame
+        | Status::Conflict => status.name(),
     };
     STATUS_NAMES.iter().position(|n| *n == name).unwrap_or(0) as u8
 }
@@ -163,6 +165,9 @@ columns! {
     quality: f64 = |m| m.quality;
     /// Whether to trust the values: an index into `STATUS_NAMES` (0 = ok).
     status: u8 = |m| status_code(m.status);
+    /// Whether `angle_unwrapped_rad` counts the whole turns for sure (false after a stretch in
+    /// which the count could have slipped, until it is re-anchored).
+    turns_known: bool = |m| m.turns_known;
 }
 
 #[cfg(test)]

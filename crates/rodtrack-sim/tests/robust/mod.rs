@@ -13,6 +13,7 @@ use rodtrack_sim::{
     apply_variation, calibrate_sim_camera, default_cameras, RenderMode, Scenario, SceneConfig,
     SimCamera, Simulation,
 };
+use std::f64::consts::TAU;
 
 /// A row `ok` but this far off is a gross error (the issue's definition).
 pub const GROSS_ANGLE_RAD: f64 = 0.2;
@@ -66,6 +67,9 @@ pub struct Tally {
     /// The longest run of visible frames not `ok` (counting from the rod's first `ok`), as
     /// (frames, rod, first frame of the run).
     pub longest_out: (usize, u32, u64),
+    /// Rows `ok` claiming a known turn count (`turns_known`) whose `angle_unwrapped_rad` is a
+    /// whole turn off the count fixed when it became known: (frame, rod, turns off).
+    pub turn_slips: Vec<(u64, u32, i64)>,
 }
 
 impl Tally {
@@ -134,6 +138,9 @@ pub fn run(
         let (mut raw_t, mut fil_t) = (Tally::default(), Tally::default());
         // Per rod and kind: seen ok yet, the current run of visible not-ok frames.
         let mut state = vec![[(false, 0usize, 0u64); 2]; n_rod];
+        // Per rod and kind: the whole turns between the reported and the true unwrapped angle,
+        // fixed when the count became known (None while it is not).
+        let mut turn_origin: Vec<[Option<i64>; 2]> = vec![[None; 2]; n_rod];
         let mut rows_kept = Vec::new();
         let (mut raw, mut filtered) = (Vec::new(), Vec::new());
         for f in 0..sim.frame_count() {
@@ -164,14 +171,24 @@ pub fn run(
                     if ok && (ea > GROSS_ANGLE_RAD || ep > GROSS_POSITION_MM) {
                         tally.gross.push((m.frame, m.rod, ea, ep, m.quality));
                     }
-                    let Some(st) = cal
-                        .rods
-                        .iter()
-                        .position(|r| r.rod == m.rod)
-                        .map(|i| &mut state[i][kind])
-                    else {
+                    let Some(ri) = cal.rods.iter().position(|r| r.rod == m.rod) else {
                         continue;
                     };
+                    let origin = &mut turn_origin[ri][kind];
+                    if !m.turns_known {
+                        *origin = None;
+                    } else if ok {
+                        let turns = ((m.angle_unwrapped_rad - t.m.angle_unwrapped_rad) / TAU)
+                            .round() as i64;
+                        match *origin {
+                            None => *origin = Some(turns),
+                            Some(o) if o != turns => {
+                                tally.turn_slips.push((m.frame, m.rod, turns - o));
+                            }
+                            Some(_) => {}
+                        }
+                    }
+                    let st = &mut state[ri][kind];
                     if !t.visible {
                         tally.false_ok += ok as usize;
                         st.1 = 0;
@@ -215,7 +232,8 @@ pub fn describe(name: &str, o: &Outcome) -> String {
         for (kind, t) in [("raw", r), ("filtered", f)] {
             s += &format!(
                 "{name} camera {c} {kind}: visible {} coverage {:.4}, gross {} (first {:?}), \
-                 false ok {}, max error {:.4} rad {:.3} mm, longest visible not ok {:?}\n",
+                 false ok {}, max error {:.4} rad {:.3} mm, longest visible not ok {:?}, \
+                 turn slips {}\n",
                 t.visible,
                 t.coverage(),
                 t.gross.len(),
@@ -223,7 +241,8 @@ pub fn describe(name: &str, o: &Outcome) -> String {
                 t.false_ok,
                 t.max_angle_rad,
                 t.max_position_mm,
-                t.longest_out
+                t.longest_out,
+                t.turn_slips.len()
             );
         }
     }
