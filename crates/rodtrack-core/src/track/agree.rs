@@ -81,59 +81,70 @@ impl EnhancedState {
         // Every reading of the high bits that keeps the phase's place in its group: the
         // decoded one (group shift 0) and the others, each shifted by whole groups of 4 steps.
         // Over all bit spaces, the share of checked samples each disagrees with.
-        let groups = ((steps / 4) as usize).clamp(1, MAX_GROUPS);
-        let mut group_n = [0u32; MAX_GROUPS];
-        let mut group_wrong = [0u32; MAX_GROUPS];
-        let mut worst = 0.0f64;
-        // Bit space 0 repeats every group of 4 steps: it tells no group from another (and the
-        // phase's fit already holds it to the stripes).
-        for k in 1..m.bits() {
-            let lp = self.knots.at(position + m.bit_space_centre_mm(k));
-            let (e, rad) = (ca.offset_px, lp.radius_px * ca.radius_ratio);
-            let off = gray_read.offsets[k as usize];
-            let (mut n, mut wrong) = (0u32, 0u32);
-            for j in (0..self.phase_delta.len()).step_by(CODE_CHECK_EVERY) {
-                let (px, py) = lp.offset(0.0, e + rad * self.phase_delta[j].2);
-                if !frame.contains(px as f32, py as f32, 1.0) {
-                    continue;
-                }
-                let v = frame.luma_bilinear(px as f32, py as f32) as f64;
-                let span = (self.white[j] - self.black[j]).max(min_span);
-                let r = (v - self.black[j]) / span - off;
-                for (g, (gn, gw)) in group_n
-                    .iter_mut()
-                    .zip(group_wrong.iter_mut())
-                    .take(groups)
-                    .enumerate()
-                {
-                    // The print coordinate this sample sees under this reading, and the
-                    // expected colour there: skip samples near an edge of the pattern (blur,
-                    // the angle's own error).
-                    let x = theta + 4.0 * g as f64 + to_steps * surface[j];
-                    let expect = ink(k, x);
-                    if ink(k, x - CODE_CHECK_EDGE_STEPS) != expect
-                        || ink(k, x + CODE_CHECK_EDGE_STEPS) != expect
-                    {
+        // `groups` readings counted: the decoded one alone, or every one.
+        let tally = |groups: usize| {
+            let mut group_n = [0u32; MAX_GROUPS];
+            let mut group_wrong = [0u32; MAX_GROUPS];
+            let mut worst = 0.0f64;
+            // Bit space 0 repeats every group of 4 steps: it tells no group from another (and the
+            // phase's fit already holds it to the stripes).
+            for k in 1..m.bits() {
+                let lp = self.knots.at(position + m.bit_space_centre_mm(k));
+                let (e, rad) = (ca.offset_px, lp.radius_px * ca.radius_ratio);
+                let off = gray_read.offsets[k as usize];
+                let (mut n, mut wrong) = (0u32, 0u32);
+                for j in (0..self.phase_delta.len()).step_by(CODE_CHECK_EVERY) {
+                    let (px, py) = lp.offset(0.0, e + rad * self.phase_delta[j].2);
+                    if !frame.contains(px as f32, py as f32, 1.0) {
                         continue;
                     }
-                    // Ink reads below the middle between the print's black and white, paper
-                    // above it and not brighter than paper by half the contrast.
-                    let agrees = if expect {
-                        r < 0.5
-                    } else {
-                        (0.5..1.5).contains(&r)
-                    };
-                    *gn += 1;
-                    *gw += (!agrees) as u32;
-                    if g == 0 {
-                        n += 1;
-                        wrong += (!agrees) as u32;
+                    let v = frame.luma_bilinear(px as f32, py as f32) as f64;
+                    let span = (self.white[j] - self.black[j]).max(min_span);
+                    let r = (v - self.black[j]) / span - off;
+                    for (g, (gn, gw)) in group_n
+                        .iter_mut()
+                        .zip(group_wrong.iter_mut())
+                        .take(groups)
+                        .enumerate()
+                    {
+                        // The print coordinate this sample sees under this reading, and the
+                        // expected colour there: skip samples near an edge of the pattern (blur,
+                        // the angle's own error).
+                        let x = theta + 4.0 * g as f64 + to_steps * surface[j];
+                        let expect = ink(k, x);
+                        if ink(k, x - CODE_CHECK_EDGE_STEPS) != expect
+                            || ink(k, x + CODE_CHECK_EDGE_STEPS) != expect
+                        {
+                            continue;
+                        }
+                        // Ink reads below the middle between the print's black and white, paper
+                        // above it and not brighter than paper by half the contrast.
+                        let agrees = if expect {
+                            r < 0.5
+                        } else {
+                            (0.5..1.5).contains(&r)
+                        };
+                        *gn += 1;
+                        *gw += (!agrees) as u32;
+                        if g == 0 {
+                            n += 1;
+                            wrong += (!agrees) as u32;
+                        }
                     }
                 }
+                if n > 0 {
+                    worst = worst.max(wrong as f64 / n as f64);
+                }
             }
-            if n > 0 {
-                worst = worst.max(wrong as f64 / n as f64);
-            }
+            (worst, group_n, group_wrong)
+        };
+        // The decoded reading first; the others only when it disagrees with the print beyond
+        // what noise makes of a true reading (and not with most of it, refused anyway).
+        let (worst, mut group_n, mut group_wrong) = tally(1);
+        let mut groups = 1;
+        if worst > 0.5 * self.code_wrong_share && worst <= 0.5 {
+            groups = ((steps / 4) as usize).clamp(1, MAX_GROUPS);
+            (_, group_n, group_wrong) = tally(groups);
         }
         let share = |g: usize| group_wrong[g] as f64 / group_n[g].max(1) as f64;
         let decoded = share(0);
