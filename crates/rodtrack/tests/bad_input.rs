@@ -81,7 +81,7 @@ fn rows(csv: &Path) -> Vec<(u64, String)> {
     lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
-            assert_eq!(f.len(), 11, "{l}");
+            assert_eq!(f.len(), 12, "{l}");
             (f[0].parse().unwrap(), f[10].to_string())
         })
         .collect()

@@ -98,7 +98,11 @@ fn png_files_live_simulator_and_video_give_identical_measurements() {
     let lines: Vec<&str> = text.lines().collect();
     // Header, then 7 rods per camera, 2 cameras, plus 8 fused rods, per frame.
     assert_eq!(lines.len(), 1 + FRAMES * (7 + 7 + 8), "{}", &text[..200]);
-    let ok = lines.iter().filter(|l| l.ends_with(",ok")).count();
+    // The status is the 11th column (the turn count's flag follows it).
+    let ok = lines
+        .iter()
+        .filter(|l| l.split(',').nth(10) == Some("ok"))
+        .count();
     assert!(ok > FRAMES * 20, "only {ok} ok rows");
     assert!(png == sim, "PNG and sim:// measurements differ");
 
