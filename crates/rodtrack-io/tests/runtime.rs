@@ -286,7 +286,12 @@ fn paced_mode_follows_the_timestamps() {
             r.elapsed
         );
         assert!(r.elapsed < Duration::from_millis(min_ms * 4 + 200));
-        assert_eq!(r.cameras[0].frames_processed, 20);
+        // Paced replays as a live camera: a frame that finds the queue full is dropped (and
+        // counted), as when the machine is busy with other work; none is lost uncounted.
+        let c = &r.cameras[0];
+        assert_eq!(c.frames_read, 20, "{c:?}");
+        assert_eq!(c.frames_processed + c.frames_dropped, 20, "{c:?}");
+        assert!(c.frames_processed > 0, "{c:?}");
     }
     let bad = Pipeline::new(config(RunMode::Paced { speed: 0.0 }));
     assert!(
