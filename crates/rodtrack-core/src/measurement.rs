@@ -195,17 +195,16 @@ pub const TURNS_KNOWN_COLUMN: &str = "turns_known";
 
 /// The columns rodtrack's measurement files carry: [`CSV_COLUMNS`], then
 /// [`TURNS_KNOWN_COLUMN`] (last, so that the older columns keep their places).
-pub const OUTPUT_COLUMNS: [&str; 12] = [
-    "frame",
-    "timestamp_s",
-    "camera",
-    "rod",
-    "position_mm",
-    "angle_rad",
-    "angle_unwrapped_rad",
-    "velocity_mm_s",
-    "angular_velocity_rad_s",
-    "quality",
-    "status",
-    TURNS_KNOWN_COLUMN,
-];
+pub const OUTPUT_COLUMNS: [&str; 12] = output_columns();
+
+/// [`CSV_COLUMNS`] followed by [`TURNS_KNOWN_COLUMN`], built at compile time so that the two
+/// lists cannot drift apart.
+const fn output_columns() -> [&'static str; 12] {
+    let mut out = [TURNS_KNOWN_COLUMN; 12];
+    let mut i = 0;
+    while i < CSV_COLUMNS.len() {
+        out[i] = CSV_COLUMNS[i];
+        i += 1;
+    }
+    out
+}

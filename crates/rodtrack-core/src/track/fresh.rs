@@ -56,27 +56,34 @@ impl EnhancedState {
             && self.not_ok_run % FRESH_SEARCH_EVERY == 1
     }
 
+    /// Exchanges the learnt state with the one set aside (no allocation: the buffers swap).
+    fn swap_learnt(&mut self) {
+        let b = &mut self.backup;
+        std::mem::swap(&mut b.centre, &mut self.centre);
+        std::mem::swap(&mut b.edge_bias_mm, &mut self.edge_bias_mm);
+        std::mem::swap(&mut b.eps_acc, &mut self.eps_acc);
+        std::mem::swap(&mut b.eps_best, &mut self.eps_best);
+        std::mem::swap(&mut b.frames_seen, &mut self.frames_seen);
+        std::mem::swap(&mut b.white_rel, &mut self.white_rel);
+        std::mem::swap(&mut b.black_rel, &mut self.black_rel);
+        std::mem::swap(&mut b.shading_at_mm, &mut self.shading_at_mm);
+        std::mem::swap(&mut b.shading_age, &mut self.shading_age);
+        std::mem::swap(&mut b.last_k, &mut self.last_k);
+        std::mem::swap(&mut b.predicted_mm, &mut self.predicted_mm);
+        std::mem::swap(&mut b.inter, &mut self.inter);
+    }
+
     /// Sets the learnt state aside and starts from the calibration alone.
     pub(super) fn forget(&mut self) {
-        let mut b = std::mem::take(&mut self.backup);
-        b.centre = self.centre;
-        b.edge_bias_mm = self.edge_bias_mm;
-        b.eps_acc.copy_from_slice(&self.eps_acc);
-        b.eps_best = self.eps_best;
-        b.frames_seen = self.frames_seen;
-        b.white_rel.copy_from_slice(&self.white_rel);
-        b.black_rel.copy_from_slice(&self.black_rel);
-        b.shading_at_mm = self.shading_at_mm;
-        b.shading_age = self.shading_age;
-        b.last_k = self.last_k;
-        b.predicted_mm = self.predicted_mm;
-        b.inter = self.inter;
-        self.backup = b;
+        self.swap_learnt();
         self.centre = CentreFit::default();
         self.edge_bias_mm = 0.0;
         self.eps_acc.fill(0.0);
         self.eps_best = self.eps_acc.len() / 2;
         self.frames_seen = 0;
+        // The shading reference is kept as it was.
+        self.white_rel.copy_from_slice(&self.backup.white_rel);
+        self.black_rel.copy_from_slice(&self.backup.black_rel);
         self.shading_at_mm = f64::NAN;
         self.shading_age = 0;
         self.last_k = None;
@@ -88,19 +95,6 @@ impl EnhancedState {
 
     /// Takes the learnt state set aside by [`EnhancedState::forget`] back.
     pub(super) fn restore(&mut self) {
-        let b = std::mem::take(&mut self.backup);
-        self.centre = b.centre;
-        self.edge_bias_mm = b.edge_bias_mm;
-        self.eps_acc.copy_from_slice(&b.eps_acc);
-        self.eps_best = b.eps_best;
-        self.frames_seen = b.frames_seen;
-        self.white_rel.copy_from_slice(&b.white_rel);
-        self.black_rel.copy_from_slice(&b.black_rel);
-        self.shading_at_mm = b.shading_at_mm;
-        self.shading_age = b.shading_age;
-        self.last_k = b.last_k;
-        self.predicted_mm = b.predicted_mm;
-        self.inter = b.inter;
-        self.backup = b;
+        self.swap_learnt();
     }
 }

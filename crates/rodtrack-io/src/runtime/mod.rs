@@ -272,14 +272,7 @@ impl Pipeline {
         let n = self.cameras.len();
         let (main_tx, main_rx) = bounded::<ToMain>(256 * n);
         let (vec_tx, vec_rx) = bounded::<Vec<Measurement>>(128 * n);
-        let grouper = Grouper::new(
-            self.config,
-            n,
-            self.fusion.take(),
-            self.camera_rows.take(),
-            &counters,
-            vec_tx,
-        );
+        let grouper = self.grouper(&counters, vec_tx);
         let threads = self.spawn(&counters, &main_tx, &vec_rx, |_| ToCaller(main_tx.clone()))?;
         drop(main_tx);
         let mut threads = threads;
@@ -303,14 +296,7 @@ impl Pipeline {
         let n = self.cameras.len();
         let (main_tx, main_rx) = bounded::<ToMain>(4 * n);
         let (vec_tx, vec_rx) = bounded::<Vec<Measurement>>(128 * n);
-        let grouper = Grouper::new(
-            self.config,
-            n,
-            self.fusion.take(),
-            self.camera_rows.take(),
-            &counters,
-            vec_tx,
-        );
+        let grouper = self.grouper(&counters, vec_tx);
         let shared = Arc::new(Mutex::new(Shared {
             grouper,
             sink: Some(sink),
@@ -333,6 +319,22 @@ impl Pipeline {
         let cameras = threads.camera_stats(&counters);
         let report = guard.grouper.finish(&counters, cameras, started, stopped);
         Ok((report, sink))
+    }
+
+    /// The frame-set grouper of a run, taking the fusion and camera-rows hooks.
+    fn grouper(
+        &mut self,
+        counters: &Arc<PipelineCounters>,
+        vec_tx: Sender<Vec<Measurement>>,
+    ) -> Grouper {
+        Grouper::new(
+            self.config,
+            self.cameras.len(),
+            self.fusion.take(),
+            self.camera_rows.take(),
+            counters,
+            vec_tx,
+        )
     }
 
     /// Starts every camera's threads; `deliver` makes each camera's output end.
