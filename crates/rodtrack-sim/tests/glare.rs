@@ -79,8 +79,17 @@ fn glare_on_a_gray_code_is_never_read_confidently_wrong() {
         Ok(v) => v.split(',').map(|s| s.parse().unwrap()).collect(),
         Err(_) => (1..=8).collect(),
     };
-    for seed in seeds {
-        let (text, raw, filtered, _) = glare_case(seed, false);
+    // The tables run in parallel (each one is independent and single-threaded).
+    let cases: Vec<_> = std::thread::scope(|scope| {
+        let runs: Vec<_> = seeds
+            .into_iter()
+            .map(|seed| scope.spawn(move || glare_case(seed, false)))
+            .collect();
+        runs.into_iter()
+            .map(|r| r.join().expect("a glare table's thread panicked"))
+            .collect()
+    });
+    for (text, raw, filtered, _) in cases {
         eprint!("{text}");
         gross += raw + filtered;
     }
