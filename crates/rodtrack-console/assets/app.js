@@ -174,8 +174,9 @@ function addRows(rows) {
   for (const r of rows) {
     const key = `${r[1]}:${r[2]}`;
     let s = rt.series.get(key);
-    if (!s) { s = { cam: r[1], rod: r[2], t: [], pos: [], ang: [], st: [] }; rt.series.set(key, s); updateSources(); }
-    s.t.push(r[0]); s.pos.push(r[3]); s.ang.push(r[4]); s.st.push(r[7]);
+    if (!s) { s = { cam: r[1], rod: r[2], t: [], pos: [], ang: [], st: [], kn: [] }; rt.series.set(key, s); updateSources(); }
+    s.t.push(r[0]); s.pos.push(r[3]); s.ang.push(r[4]); s.st.push(r[7]); s.kn.push(r[8]);
+    s.last = { status: r[7], known: r[8] === 1, unwrapped: r[4], angle: r[5] };
     if (r[0] > rt.lastT) rt.lastT = r[0];
   }
   rt.rows += rows.length;
@@ -183,14 +184,14 @@ function addRows(rows) {
     // Trim old samples in blocks (cheap amortised).
     let k = 0;
     while (k < s.t.length && s.t[k] < rt.lastT - KEEP_S) k++;
-    if (k > 1000 || (k > 0 && k === s.t.length)) { s.t.splice(0, k); s.pos.splice(0, k); s.ang.splice(0, k); s.st.splice(0, k); }
+    if (k > 1000 || (k > 0 && k === s.t.length)) { s.t.splice(0, k); s.pos.splice(0, k); s.ang.splice(0, k); s.st.splice(0, k); s.kn.splice(0, k); }
     // The clock went back (the demo loops): start over.
-    if (s.t.length && s.t[s.t.length - 1] < rt.lastT - KEEP_S) { s.t = []; s.pos = []; s.ang = []; s.st = []; }
+    if (s.t.length && s.t[s.t.length - 1] < rt.lastT - KEEP_S) { s.t = []; s.pos = []; s.ang = []; s.st = []; s.kn = []; }
   }
   const last = rows.length ? rows[rows.length - 1][0] : rt.lastT;
   if (last < rt.lastT - 1) { // loop restart: clear everything
     rt.lastT = last;
-    for (const s of rt.series.values()) { s.t = []; s.pos = []; s.ang = []; s.st = []; }
+    for (const s of rt.series.values()) { s.t = []; s.pos = []; s.ang = []; s.st = []; s.kn = []; }
   }
 }
 
@@ -234,16 +235,23 @@ function drawPlot(canvas, field, label, unit, cam, win) {
     const i0 = ranges[j], n = s.t.length - i0;
     if (n <= 0) return;
     const step = Math.max(1, Math.floor(n / (W - L - R)));  // decimate for drawing
-    ctx.strokeStyle = ROD_COLOUR[s.rod % ROD_COLOUR.length]; ctx.lineWidth = 1.3;
-    ctx.beginPath();
-    let pen = false;
-    for (let k = i0; k < s.t.length; k += step) {
-      if (s.st[k] !== 0 && s.st[k] !== 4) { pen = false; continue; }
-      const xx = x(s.t[k]), yy = y(s[field][k]);
-      if (pen) ctx.lineTo(xx, yy); else ctx.moveTo(xx, yy);
-      pen = true;
+    // Two passes: the samples whose turn count is known in the rod's colour, then (angle
+    // plot) those whose count is unknown in grey: their unwrapped angle may be off by turns.
+    for (const known of field === 'ang' ? [true, false] : [null]) {
+      ctx.strokeStyle = known === false ? '#6b7280' : ROD_COLOUR[s.rod % ROD_COLOUR.length];
+      ctx.lineWidth = 1.3;
+      ctx.setLineDash(known === false ? [4, 3] : []);
+      ctx.beginPath();
+      let pen = false;
+      for (let k = i0; k < s.t.length; k += step) {
+        if ((s.st[k] !== 0 && s.st[k] !== 4) || (known !== null && (s.kn[k] === 1) !== known)) { pen = false; continue; }
+        const xx = x(s.t[k]), yy = y(s[field][k]);
+        if (pen) ctx.lineTo(xx, yy); else ctx.moveTo(xx, yy);
+        pen = true;
+      }
+      ctx.stroke();
     }
-    ctx.stroke();
+    ctx.setLineDash([]);
   });
 }
 
@@ -256,10 +264,46 @@ function drawPlots() {
     const rods = [...rt.series.values()].filter((s) => s.cam === cam).map((s) => s.rod).sort((a, b) => a - b);
     const leg = rods.map((r) => `<span style="color:${ROD_COLOUR[r % ROD_COLOUR.length]}">rod ${r}</span>`).join('');
     if ($('legend').innerHTML !== leg) $('legend').innerHTML = leg;
+    showTurns(cam);
     rt.plotDraws++;
   }
   setTimeout(() => requestAnimationFrame(drawPlots), 50);
 }
+
+// The turn count of rod `rod` of source `cam` as its last row gave it: {known, turns, status}
+// (turns: the whole turn of the unwrapped angle), or null before any row.
+function turnsOf(cam, rod) {
+  const s = rt.series.get(`${cam}:${rod}`);
+  if (!s || !s.last) return null;
+  const l = s.last;
+  return { known: l.known, status: STATUS[l.status] || '?', turns: Math.round((l.unwrapped - l.angle) / (2 * Math.PI)) };
+}
+rt.turnsOf = turnsOf;
+
+// Per rod of the plotted source: its whole turn, or a "turns ?" badge while the count is
+// unknown (the unwrapped angle may be off by whole turns until it is re-anchored).
+function showTurns(cam) {
+  const rods = [...rt.series.values()].filter((s) => s.cam === cam).map((s) => s.rod).sort((a, b) => a - b);
+  const html = rods.map((rod) => {
+    const t = turnsOf(cam, rod);
+    if (!t) return '';
+    const value = t.status === 'ok' || t.status === 'predicted';
+    if (value && !t.known) return `<span class="turns unknown" data-rod="${rod}" title="the turn count may have slipped: re-anchor it">rod ${rod} turns ?</span>`;
+    if (!value) return `<span class="turns idle" data-rod="${rod}">rod ${rod} ${t.status}</span>`;
+    return `<span class="turns" data-rod="${rod}">rod ${rod} turn ${t.turns}</span>`;
+  }).join('');
+  if ($('turns').innerHTML !== html) $('turns').innerHTML = html;
+}
+
+$('ra-go').onclick = async () => {
+  const rod = $('ra-rod').value.trim(), turns = $('ra-turns').value.trim();
+  const body = { rod: rod === '' ? null : Number(rod), turns: turns === '' ? null : Number(turns) };
+  try {
+    await api('POST', '/api/reanchor', body);
+    $('ra-msg').textContent = `rod ${body.rod}: turn count set to ${body.turns}`;
+    $('ra-msg').classList.remove('err');
+  } catch (e) { $('ra-msg').textContent = e.message; $('ra-msg').classList.add('err'); }
+};
 
 function showStats(m) {
   const s = m.stats, o = m.overhead;
@@ -274,6 +318,7 @@ function showStats(m) {
     text = `cameras ${m.cameras.map((c) => c.index).join(', ') || 'none'}`;
   }
   $('stats').textContent = text;
+  $('reanchor').hidden = !m.session;
   rt.stats = m;
 }
 
@@ -313,6 +358,7 @@ function setCalib(state, reloadFrame) {
     $('trav0').value = rod.travel_mm[0]; $('trav1').value = rod.travel_mm[1];
   }
   if (cam && cam.inputs.rods.length) $('new-rod').value = Math.max(...cam.inputs.rods.map((r) => r.rod)) + 1;
+  showPoses(rod);
   showResiduals();
   const nowFrame = cam && cam.frozen ? cam.frozen.frame_id : null;
   if (cam && cam.frozen && (reloadFrame || nowFrame !== prevFrame || !rt.calFrame || rt.calFrame.header.camera !== cam.index)) loadCalFrame(cam.index);
@@ -417,21 +463,55 @@ $('save').onclick = async () => {
   try { const r = await api('POST', '/api/save'); calMsg(`saved ${r.saved.calibration}`); } catch (e) { calMsg(e.message); }
 };
 
+// The known-pose step of the selected rod: what to do, and the poses captured.
+function showPoses(rod) {
+  if (!rod) { $('pose-hint').textContent = 'add a rod first'; $('poses').textContent = ''; return; }
+  const [lo, hi] = rod.travel_mm;
+  $('pose-hint').textContent = `push rod ${rod.rod} to its left stop (${lo} mm), click "Capture left stop"; the right stop (${hi} mm) is optional`;
+  $('poses').textContent = (rod.known_poses || []).map((k) => `frame ${k.frame}: ${k.position_mm} mm`).join(', ') || 'none captured';
+}
+
+async function capturePose(stop) {
+  const cam = curCam(), rod = curRod();
+  if (!cam || !rod) { calMsg('select a rod first'); return; }
+  try {
+    await api('POST', `/api/calib/${cam.index}/rods/${rod.rod}/known_pose`, { stop });
+    calMsg(`rod ${rod.rod}: capturing the ${stop} stop...`);
+    for (let i = 0; i < 50; i++) {
+      await new Promise((r) => setTimeout(r, 100));
+      const st = await api('GET', '/api/calib');
+      if (!st.pending_pose) {
+        setCalib(st, false);
+        const r = curRod(), k = r && (r.known_poses || []).find((p) => p.position_mm === rod.travel_mm[stop === 'left' ? 0 : 1]);
+        calMsg(k ? `rod ${rod.rod}: ${stop} stop captured (frame ${k.frame}, ${k.position_mm} mm)` : 'no frame captured');
+        return;
+      }
+    }
+    calMsg('no frame arrived');
+  } catch (e) { calMsg(e.message); }
+}
+$('cap-left').onclick = () => capturePose('left');
+$('cap-right').onclick = () => capturePose('right');
+$('clear-poses').onclick = async () => {
+  const cam = curCam(), rod = curRod(); if (!cam || !rod) return;
+  try { setCalib(await api('POST', `/api/calib/${cam.index}/rods/${rod.rod}/known_poses/clear`)); } catch (e) { calMsg(e.message); }
+};
+
 function showResiduals() {
   const t = $('residuals');
   if (!rt.calib) { t.innerHTML = ''; return; }
-  let html = '<tr><th>cam</th><th>rod</th><th>points</th><th>path rms / max px</th><th>edge rms mm</th><th>scale ratio</th><th>ref ncc</th><th>code-phase steps</th><th>radius ratio</th><th style="text-align:left">notes</th></tr>';
+  let html = '<tr><th>cam</th><th>rod</th><th>points</th><th>path rms / max px</th><th>edge rms mm</th><th>scale ratio</th><th>ref ncc</th><th>code-phase steps</th><th>radius ratio</th><th>travel model</th><th>known poses: error mm</th><th style="text-align:left">notes</th></tr>';
   for (const c of rt.calib.cameras) {
     for (const r of c.inputs.rods) {
       const o = c.outcomes.find((x) => x.rod === r.rod);
       const s = o && o.residuals;
       const note = o ? (o.error ? `<td class="err">${esc(o.error)}</td>` : `<td class="msg">${esc((s.warnings || []).join('; '))}</td>`) : '<td class="msg">not calibrated</td>';
       html += `<tr><td>${c.index}</td><td>${r.rod}</td><td>${r.path_points_px.length}</td>` +
-        (s ? `<td>${s.path_rms_px.toFixed(2)} / ${s.path_max_px.toFixed(2)}</td><td>${s.edge_rms_mm.toFixed(3)}</td><td>${s.scale_ratio.toFixed(3)}</td><td>${s.reference_ncc.toFixed(3)}</td><td>${s.reference_code_phase_steps.toFixed(2)}</td><td>${s.radius_ratio.toFixed(3)}</td>` : '<td></td><td></td><td></td><td></td><td></td><td></td>') +
+        (s ? `<td>${s.path_rms_px.toFixed(2)} / ${s.path_max_px.toFixed(2)}</td><td>${s.edge_rms_mm.toFixed(3)}</td><td>${s.scale_ratio.toFixed(3)}</td><td>${s.reference_ncc.toFixed(3)}</td><td>${s.reference_code_phase_steps.toFixed(2)}</td><td>${s.radius_ratio.toFixed(3)}</td><td>${esc(s.travel_model || '')}</td><td class="known-errors">${(s.known_pose_errors_mm || []).map((e) => `frame ${e[0]}: ${e[1].toFixed(3)}`).join(', ')}</td>` : '<td></td><td></td><td></td><td></td><td></td><td></td><td></td><td></td>') +
         note + '</tr>';
     }
     for (const o of c.outcomes.filter((x) => !c.inputs.rods.some((r) => r.rod === x.rod))) {
-      html += `<tr><td>${c.index}</td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td class="err">${esc(o.error || '')}</td></tr>`;
+      html += `<tr><td>${c.index}</td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td></td><td class="err">${esc(o.error || '')}</td></tr>`;
     }
   }
   t.innerHTML = html;

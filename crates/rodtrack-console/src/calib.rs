@@ -5,11 +5,11 @@
 use crate::image::{to_pnm, OwnedFrame};
 use crate::ConsoleError;
 use rodtrack_core::calib::{
-    calibrate_rod, CalibrationFile, CalibrationInputs, CameraCalibration, ImageSize,
+    calibrate_rods, CalibrationFile, CalibrationInputs, CameraCalibration, ImageSize, KnownPose,
     ReferenceFrames, ReferencePose, Residuals, RodInputs, CALIBRATION_VERSION,
 };
 use rodtrack_core::{CameraIntrinsics, LumaKind, MarkerSpec};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// What the console calibrates: the cameras' inputs (and reference frames, when there are
@@ -50,8 +50,29 @@ pub(crate) struct CalibCamera {
     pub index: u32,
     pub inputs: CalibrationInputs,
     pub frozen: Option<OwnedFrame>,
+    /// Frames captured with a rod at a known pose: frame `i + 1` of the reference folder
+    /// (the frozen frame is frame 0), named by the rods' `known_poses`.
+    pub pose_frames: Vec<OwnedFrame>,
     pub outcomes: Vec<RodOutcome>,
     pub calibration: Option<CameraCalibration>,
+}
+
+/// Which end stop of its travel a rod is pushed against for a known pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stop {
+    /// The start of the travel (`travel_mm[0]`).
+    Left,
+    /// The end of the travel (`travel_mm[1]`).
+    Right,
+}
+
+/// A known-pose capture waiting for the camera's next frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub(crate) struct PoseCapture {
+    pub camera: u32,
+    pub rod: u32,
+    pub stop: Stop,
 }
 
 /// Every camera in the calibration service.
@@ -60,6 +81,8 @@ pub(crate) struct CalibState {
     pub out_path: Option<PathBuf>,
     pub cameras: Vec<CalibCamera>,
     pub saved: Option<String>,
+    /// The known-pose capture the next frozen frame is for (else it is the reference frame).
+    pub pending_pose: Option<PoseCapture>,
 }
 
 /// Default inputs for a camera that has none (the operator adds rods in the browser).
@@ -103,12 +126,22 @@ impl CalibState {
         let mut cameras: Vec<CalibCamera> = ctx
             .cameras
             .into_iter()
-            .map(|c| CalibCamera {
-                index: c.index,
-                inputs: c.inputs,
-                frozen: c.reference,
-                outcomes: Vec::new(),
-                calibration: None,
+            .map(|c| {
+                let mut inputs = c.inputs;
+                // The console holds one reference frame and the poses it captures itself:
+                // known poses naming other frames of a folder have no frame here.
+                for r in &mut inputs.rods {
+                    r.known_poses.clear();
+                    r.travel_frames = None;
+                }
+                CalibCamera {
+                    index: c.index,
+                    inputs,
+                    frozen: c.reference,
+                    pose_frames: Vec::new(),
+                    outcomes: Vec::new(),
+                    calibration: None,
+                }
             })
             .collect();
         cameras.sort_by_key(|c| c.index);
@@ -116,6 +149,7 @@ impl CalibState {
             out_path: ctx.out_path,
             cameras,
             saved: None,
+            pending_pose: None,
         }
     }
 
@@ -127,8 +161,17 @@ impl CalibState {
         self.cameras.iter().find(|c| c.index == index)
     }
 
-    /// Stores a frozen frame, creating the camera with default inputs when it is new.
+    /// Stores a frozen frame, creating the camera with default inputs when it is new; when a
+    /// known-pose capture of this camera is pending ([`CalibState::pending_pose`]), the frame
+    /// is that pose's instead (see [`CalibCamera::add_known_pose`]).
     pub fn freeze(&mut self, index: u32, frame: OwnedFrame) {
+        if let Some(p) = self.pending_pose.filter(|p| p.camera == index) {
+            self.pending_pose = None;
+            if let Some(c) = self.camera_mut(index) {
+                c.add_known_pose(p.rod, p.stop, frame);
+                return;
+            }
+        }
         match self.camera_mut(index) {
             Some(c) => {
                 c.frozen = Some(frame);
@@ -140,6 +183,7 @@ impl CalibState {
                     index,
                     inputs,
                     frozen: Some(frame),
+                    pose_frames: Vec::new(),
                     outcomes: Vec::new(),
                     calibration: None,
                 });
@@ -164,8 +208,35 @@ impl CalibState {
     }
 }
 
-/// Calibrates every rod of one camera on its frozen frame, as `rodtrack calibrate` does.
-/// Returns the per-rod outcomes and, when every rod succeeded, the camera's calibration.
+impl CalibCamera {
+    /// Takes `frame` as rod `rod`'s known pose at `stop` (its travel's end there): the frame
+    /// becomes the next frame of the reference folder and the rod's `known_poses` names it,
+    /// replacing an earlier capture at the same stop.
+    pub(crate) fn add_known_pose(&mut self, rod: u32, stop: Stop, frame: OwnedFrame) {
+        let Some(r) = self.inputs.rods.iter_mut().find(|r| r.rod == rod) else {
+            return;
+        };
+        let position_mm = match stop {
+            Stop::Left => r.travel_mm[0],
+            Stop::Right => r.travel_mm[1],
+        };
+        self.pose_frames.push(frame);
+        let pose = KnownPose {
+            frame: self.pose_frames.len(),
+            position_mm,
+            angle_rad: None,
+        };
+        r.known_poses.retain(|k| k.position_mm != position_mm);
+        r.known_poses.push(pose);
+        r.known_poses
+            .sort_by(|a, b| a.position_mm.total_cmp(&b.position_mm));
+        self.calibration = None;
+    }
+}
+
+/// Calibrates every rod of one camera on its frozen frame and its captured known poses, as
+/// `rodtrack calibrate` does (every rod together: [`calibrate_rods`]). Returns the per-rod
+/// outcomes and, when every rod succeeded, the camera's calibration.
 pub(crate) fn calibrate_camera(
     cam: &CalibCamera,
 ) -> Result<(Vec<RodOutcome>, Option<CameraCalibration>), ConsoleError> {
@@ -182,10 +253,21 @@ pub(crate) fn calibrate_camera(
         )?),
         None => None,
     };
+    // The reference folder as `save` writes it: the frozen frame is frame 0 (every rod's
+    // reference), the known poses' frames follow.
+    let mut frames = vec![(0, view)];
+    for (i, f) in cam.pose_frames.iter().enumerate() {
+        frames.push((i + 1, f.view()?));
+    }
+    let mut inputs = cam.inputs.rods.clone();
+    for r in &mut inputs {
+        r.reference.frame = 0;
+    }
+    let results = calibrate_rods(&inputs, &frames, intrinsics.as_ref());
     let mut outcomes = Vec::new();
     let mut rods = Vec::new();
-    for r in &cam.inputs.rods {
-        match calibrate_rod(r, &view, intrinsics.as_ref()) {
+    for (r, result) in cam.inputs.rods.iter().zip(results) {
+        match result {
             Ok(c) => {
                 outcomes.push(RodOutcome {
                     rod: r.rod,
@@ -293,6 +375,10 @@ pub(crate) fn save(out: &Path, cameras: &[CalibCamera]) -> Result<Saved, Console
             "pgm"
         };
         write_atomic(&frames_dir.join(format!("000000.{ext}")), &to_pnm(frame))?;
+        // The known poses' frames, in the order their `known_poses` name them.
+        for (i, f) in c.pose_frames.iter().enumerate() {
+            write_atomic(&frames_dir.join(format!("{:06}.{ext}", i + 1)), &to_pnm(f))?;
+        }
         let mut inputs = c.inputs.clone();
         inputs.reference_frames = ReferenceFrames {
             dir: name.clone(),

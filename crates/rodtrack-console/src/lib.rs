@@ -52,18 +52,23 @@
 //!   copied (zero copy, full resolution; `rodtrack demo` and `rodtrack console --demo` use it,
 //!   and `rodtrack track`, whose frames are the runtime's, through the runtime's frame hook).
 //! - [`ConsoleHandle::publish_rows`]`(&[Measurement])`, [`ConsoleHandle::publish_stats`].
-//! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions
-//!   (see [`server`]).
+//! - [`ConsoleHandle::attach_session`]`(Arc<dyn SessionCommands>)`: the running session, for
+//!   the page's re-anchoring of a rod's turn count (see [`control`]).
+//! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions,
+//!   `/api/reanchor` (see [`server`]).
 
 pub mod calib;
+pub mod control;
 pub mod error;
 mod guard;
 pub mod image;
 pub mod overlay;
+mod poses;
 pub(crate) mod rows;
 pub mod server;
 
 pub use calib::{CalibrationContext, CameraSetup, RodOutcome, Saved};
+pub use control::SessionCommands;
 pub use error::ConsoleError;
 pub use image::{preview, OwnedFrame, Preview};
 pub use overlay::{
@@ -270,6 +275,8 @@ pub(crate) struct Shared {
     pub calib: Mutex<CalibState>,
     /// The session token given to the page (see [`guard`]).
     pub token: String,
+    /// The tracking session's commands ([`ConsoleHandle::attach_session`]).
+    pub session: Mutex<control::Attached>,
 }
 
 impl Shared {
@@ -381,6 +388,7 @@ impl Console {
             spent: Spent::default(),
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
             token: guard::new_token(),
+            session: Mutex::new(None),
         });
         let guard = Arc::new(guard::GuardConfig {
             addr: local,
@@ -596,6 +604,14 @@ impl ConsoleHandle {
             *s = Some(*stats);
         }
         self.shared.account(t0);
+    }
+
+    /// Attaches the running tracking session: the page then offers to re-anchor a rod's turn
+    /// count (`POST /api/reanchor`), which calls `session`. Only the console's thread calls it.
+    pub fn attach_session(&self, session: Arc<dyn SessionCommands>) {
+        if let Ok(mut s) = self.shared.session.lock() {
+            *s = Some(session);
+        }
     }
 
     /// Time spent in the publish calls so far.

@@ -27,7 +27,12 @@ pub(crate) struct PlotRow {
     pub camera: i8,
     /// [`status_code`] of the row's status.
     pub status: u8,
+    /// The row's turn count is known ([`Measurement::turns_known`]).
+    pub turns_known: bool,
 }
+
+/// The bit of the packed status byte that holds `turns_known` (status codes are below it).
+const TURNS_KNOWN_BIT: u64 = 0x80;
 
 /// The status as the page knows it.
 pub(crate) fn status_code(s: Status) -> u8 {
@@ -57,6 +62,7 @@ impl PlotRow {
                 rodtrack_core::CameraId::Fused => -1,
             },
             status: status_code(m.status),
+            turns_known: m.turns_known,
         }
     }
 
@@ -68,7 +74,9 @@ impl PlotRow {
             self.quality.to_bits() as u64
                 | (self.rod as u64) << 32
                 | (self.camera as u8 as u64) << 48
-                | (self.status as u64) << 56,
+                | ((self.status as u64 & !TURNS_KNOWN_BIT)
+                    | if self.turns_known { TURNS_KNOWN_BIT } else { 0 })
+                    << 56,
         ]
     }
 
@@ -81,7 +89,8 @@ impl PlotRow {
             quality: f32::from_bits(w[3] as u32),
             rod: (w[3] >> 32) as u16,
             camera: (w[3] >> 48) as u8 as i8,
-            status: (w[3] >> 56) as u8,
+            status: ((w[3] >> 56) & !TURNS_KNOWN_BIT) as u8,
+            turns_known: (w[3] >> 56) & TURNS_KNOWN_BIT != 0,
         }
     }
 }
@@ -230,6 +239,11 @@ mod tests {
         m.quality = 0.75;
         let r = PlotRow::new(&m);
         assert_eq!(PlotRow::unpack(r.pack()), r);
+        assert!(!r.turns_known);
+        m.status = Status::Conflict;
+        m.turns_known = true;
+        let k = PlotRow::unpack(PlotRow::new(&m).pack());
+        assert_eq!((k.status, k.turns_known), (7, true));
         assert_eq!(
             (r.timestamp_s, r.angle_unwrapped_rad, r.rod, r.camera),
             (12.345678, 1234.5678, 7, 3)

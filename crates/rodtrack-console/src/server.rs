@@ -3,7 +3,7 @@
 //! | route | what |
 //! |---|---|
 //! | `GET /`, `/app.js`, `/style.css` | the page (embedded, no network) |
-//! | `GET /ws` | live data: text messages `{"t":"rows",...}`, `{"t":"stats",...}`; binary frames |
+//! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}`; binary frames |
 //! | `GET /api/status` | cameras seen, pipeline counters, publish overhead |
 //! | `GET /api/calib` | calibration state: per camera its inputs, frozen frame, outcomes |
 //! | `POST /api/calib/{cam}/freeze` | freeze the camera's next frame |
@@ -15,8 +15,11 @@
 //! | `PUT /api/calib/{cam}/rods/{rod}/points` `{points}` | replace the path points |
 //! | `POST /api/calib/{cam}/rods/{rod}/points/clear` | remove the path points |
 //! | `POST /api/calib/{cam}/rods/{rod}/reference` `{position_mm, angle_rad, travel_mm?}` | the rod's known pose in the frozen frame |
+//! | `POST /api/calib/{cam}/rods/{rod}/known_pose` `{stop: "left"\|"right"}` | the camera's next frame is the rod's known pose at that end of its travel |
+//! | `POST /api/calib/{cam}/rods/{rod}/known_poses/clear` | forget the rod's known poses |
 //! | `POST /api/calibrate` | calibrate every rod of every camera with a frozen frame |
 //! | `POST /api/save` | write the calibration file (TOML) and the inputs beside it |
+//! | `POST /api/reanchor` `{rod, turns, camera?}` | set a rod's turn count in the running session (409 without one) |
 //!
 //! Every request passes `guard`'s checks first (Host, Origin, session token).
 //!
@@ -54,13 +57,13 @@ const TICK_MS: u64 = 40;
 const MAX_ROWS_PER_MESSAGE: usize = 20_000;
 
 #[derive(Clone)]
-struct AppState {
-    shared: Arc<Shared>,
+pub(crate) struct AppState {
+    pub(crate) shared: Arc<Shared>,
     stop: tokio::sync::watch::Receiver<bool>,
 }
 
 /// Locks a mutex, recovering the data if a thread panicked while holding it.
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
@@ -90,8 +93,17 @@ pub(crate) fn router(
             post(clear_points),
         )
         .route("/api/calib/{cam}/rods/{rod}/reference", post(set_reference))
+        .route(
+            "/api/calib/{cam}/rods/{rod}/known_pose",
+            post(crate::poses::capture),
+        )
+        .route(
+            "/api/calib/{cam}/rods/{rod}/known_poses/clear",
+            post(crate::poses::clear),
+        )
         .route("/api/calibrate", post(calibrate))
         .route("/api/save", post(save_file))
+        .route("/api/reanchor", post(crate::control::reanchor))
         .with_state(AppState { shared, stop })
         .layer(axum::middleware::from_fn_with_state(
             guard,
@@ -158,6 +170,7 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         "overhead": sh.overhead(),
         "uptime_s": sh.started.elapsed().as_secs_f64(),
         "clients": sh.clients.load(Ordering::Relaxed),
+        "session": lock(&sh.session).is_some(),
     })
 }
 
@@ -175,7 +188,7 @@ struct FrozenInfo {
     height: usize,
 }
 
-fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
+pub(crate) fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
     let cameras: Vec<serde_json::Value> = cal
         .cameras
         .iter()
@@ -195,6 +208,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
                 "freeze_pending": pending,
                 "outcomes": c.outcomes,
                 "calibrated": c.calibration.is_some(),
+                "pose_frames": c.pose_frames.len(),
             })
         })
         .collect();
@@ -210,6 +224,7 @@ fn calib_json(sh: &Shared, cal: &CalibState) -> serde_json::Value {
         "live_cameras": live,
         "out_path": cal.out_path,
         "saved": cal.saved,
+        "pending_pose": cal.pending_pose,
     })
 }
 
@@ -559,7 +574,7 @@ fn push_row(s: &mut String, m: &PlotRow, comma: bool) {
     }
     let _ = write!(
         s,
-        "[{:.5},{},{},{:.3},{:.4},{:.4},{:.2},{}]",
+        "[{:.5},{},{},{:.3},{:.4},{:.4},{:.2},{},{}]",
         m.timestamp_s,
         m.camera,
         m.rod,
@@ -567,7 +582,8 @@ fn push_row(s: &mut String, m: &PlotRow, comma: bool) {
         m.angle_unwrapped_rad,
         m.angle_rad,
         m.quality,
-        m.status
+        m.status,
+        u8::from(m.turns_known)
     );
 }
 

@@ -252,6 +252,14 @@ impl CameraFilter {
         self.bank.turn_stats()
     }
 
+    /// The turn-count counters of `rod`'s filter (zero for a rod not filtered yet).
+    pub fn rod_turn_stats(&self, rod: u32) -> TurnStats {
+        self.bank
+            .filter(rod)
+            .map(|f| f.turn_stats())
+            .unwrap_or_default()
+    }
+
     /// Appends the filtered row of each camera row of `rows` (fused rows are not a camera's
     /// and are skipped).
     pub fn process(&mut self, rows: &[Measurement], out: &mut Vec<Measurement>) {
@@ -319,6 +327,15 @@ impl SetFusion {
     /// The fused rows' turn-count counters, every rod together.
     pub fn turn_stats(&self) -> TurnStats {
         self.bank.turn_stats()
+    }
+
+    /// The turn-count counters of the fused rows' filter of `rod` (zero for a rod not
+    /// filtered yet).
+    pub fn rod_turn_stats(&self, rod: u32) -> TurnStats {
+        self.bank
+            .filter(rod)
+            .map(|f| f.turn_stats())
+            .unwrap_or_default()
     }
 
     /// The camera rows the last frame set's fusion overruled, as (camera, rod); none in paper

@@ -28,7 +28,9 @@
 
 pub mod auto;
 pub mod calibration;
+pub mod control;
 pub mod error;
+pub mod health;
 pub mod hooks;
 pub mod session;
 pub mod sinks;
@@ -38,7 +40,9 @@ pub use calibration::{
     calibrate_camera_file, calibrate_files, calibration_file, print_warning, read_calibration,
     read_inputs, read_opencv_model, write_calibration, ReferenceFolder, DEFAULT_FPS,
 };
+pub use control::{Reanchor, SessionControl};
 pub use error::SdkError;
+pub use health::RodHealth;
 pub use hooks::{Hooks, NoHooks, Progress};
 pub use session::{
     mode_from_name, pipeline_config, RunReport, Session, SessionCamera, SessionOptions, LIVE_SPIN,

@@ -25,10 +25,14 @@
 //! - On the end of the inputs, an error or [`Session::stop_flag`]: every pending set is
 //!   written and the sink flushed.
 
+use crate::control::SessionControl;
+use crate::health::{health_lines, CameraHealth, CountingSink, RodHealth};
 use crate::hooks::{Hooks, NoHooks, Progress};
 use crate::SdkError;
 use rodtrack_core::calib::CalibrationFile;
-use rodtrack_core::{CameraFilter, CameraPipeline, Measurement, Mode, SetFusion, TurnAnchor};
+use rodtrack_core::{
+    CameraFilter, CameraId, CameraPipeline, Measurement, Mode, SetFusion, TurnAnchor,
+};
 use rodtrack_io::runtime::{
     Handoff, LatencyHistogram, LatencySummary, Pipeline, PipelineConfig, PipelineCounters,
     PipelineReport, RunMode, WriteMode,
@@ -105,6 +109,7 @@ pub struct Session {
     options: SessionOptions,
     hooks: Arc<dyn Hooks>,
     stop: Arc<AtomicBool>,
+    control: SessionControl,
 }
 
 impl Session {
@@ -161,12 +166,31 @@ impl Session {
 
     /// A session over cameras opened by the caller.
     pub fn from_cameras(cameras: Vec<SessionCamera>, options: SessionOptions) -> Session {
+        let control = SessionControl::new(
+            cameras
+                .iter()
+                .map(|c| {
+                    (
+                        c.pipe.index(),
+                        c.pipe.rods().iter().map(|r| r.rod()).collect(),
+                    )
+                })
+                .collect(),
+        );
         Session {
             cameras,
             options,
             hooks: Arc::new(NoHooks),
             stop: Arc::new(AtomicBool::new(false)),
+            control,
         }
+    }
+
+    /// A handle to send commands to the session while it runs (re-anchoring a rod's turn
+    /// count, see [`SessionControl`]); the commands reach the temporal filter, so they do
+    /// nothing with [`SessionOptions::filter`] false.
+    pub fn control(&self) -> SessionControl {
+        self.control.clone()
     }
 
     /// The hooks to call while running.
@@ -262,6 +286,9 @@ pub struct RunReport {
     pub config: PipelineConfig,
     /// Camera disagreements and sync warnings of the fusion.
     pub warnings: u64,
+    /// Per camera and rod, then per fused rod: fresh searches, learnt-state resets, rows
+    /// with the turn count unknown, the count lost and re-anchored, conflicts.
+    pub rods: Vec<RodHealth>,
 }
 
 impl RunReport {
@@ -294,6 +321,7 @@ impl RunReport {
                 us(p.max)
             ));
         }
+        s.push_str(&health_lines(&self.rods));
         s
     }
 
@@ -375,6 +403,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
         options,
         hooks,
         stop,
+        control,
     } = session;
     let live = cameras.iter().any(|c| c.source.info().live);
     let config = options.config.unwrap_or_else(|| pipeline_config(live));
@@ -393,6 +422,22 @@ fn run_cameras<S: MeasurementSink + 'static>(
     let uses_frames = hooks.uses_frames();
     let mut pipeline = Pipeline::new(config);
     let mut times = Vec::new();
+    let mut health = Vec::new();
+    // The rows' counters: every camera's rods, then the fused ones.
+    let mut keys: Vec<(CameraId, u32)> = Vec::new();
+    let mut all_rods: Vec<u32> = Vec::new();
+    for cam in &cameras {
+        for r in cam.pipe.rods() {
+            keys.push((CameraId::Camera(cam.pipe.index()), r.rod()));
+            if !all_rods.contains(&r.rod()) {
+                all_rods.push(r.rod());
+            }
+        }
+    }
+    let fused = options.filter && ncam > 1;
+    if fused {
+        keys.extend(all_rods.iter().map(|&r| (CameraId::Fused, r)));
+    }
     for cam in cameras {
         let SessionCamera {
             label,
@@ -409,6 +454,12 @@ fn run_cameras<S: MeasurementSink + 'static>(
         };
         let t = Arc::new(ProcessTimes::default());
         times.push(t.clone());
+        let rods_health = Arc::new(CameraHealth::new(
+            CameraId::Camera(cam_index),
+            pipe.rods().iter().map(|r| r.rod()),
+        ));
+        health.push(rods_health.clone());
+        let tracker_health = rods_health.clone();
         let h = hooks.clone();
         let index = pipeline.add_camera(
             source,
@@ -429,6 +480,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
                         if let Ok(mut hist) = t.histogram.lock() {
                             hist.record(d);
                         }
+                        tracker_health.record_tracker(&pipe);
                         h.measured(cam_index, meta, rows, &pipe);
                     }
                     Err(msg) => {
@@ -453,10 +505,17 @@ fn run_cameras<S: MeasurementSink + 'static>(
         if options.filter {
             let mut f = CameraFilter::new(options.mode);
             f.set_turn_anchors(&options.turn_anchors);
+            let mut commands = control.follower(CameraId::Camera(cam_index), &options.turn_anchors);
             pipeline
                 .set_camera_filter(
                     index,
-                    Box::new(move |_meta, rows, out| f.process(rows, out)),
+                    Box::new(move |meta, rows, out| {
+                        if let Some(anchors) = commands.poll(meta.frame_id) {
+                            f.set_turn_anchors(anchors);
+                        }
+                        f.process(rows, out);
+                        rods_health.record_turns(|rod| f.rod_turn_stats(rod));
+                    }),
                 )
                 .map_err(|e| SdkError::Io {
                     context: "setting the camera filter".into(),
@@ -465,9 +524,12 @@ fn run_cameras<S: MeasurementSink + 'static>(
         }
     }
     let warnings = Arc::new(AtomicU64::new(0));
-    if options.filter && ncam > 1 {
+    if fused {
         let mut fusion = SetFusion::new(options.mode);
         fusion.set_turn_anchors(&options.turn_anchors);
+        let mut commands = control.follower(CameraId::Fused, &options.turn_anchors);
+        let fused_health = Arc::new(CameraHealth::new(CameraId::Fused, all_rods.clone()));
+        health.push(fused_health.clone());
         let (h, count) = (hooks.clone(), warnings.clone());
         // The camera rows the fusion overruled, for the stage after it (same thread).
         let overruled = Arc::new(std::sync::Mutex::new(Vec::with_capacity(64)));
@@ -477,8 +539,12 @@ fn run_cameras<S: MeasurementSink + 'static>(
                 rodtrack_core::fusion::flag_overruled_rows(&list, rows);
             }
         }));
-        pipeline.set_fusion(Box::new(move |_set, raw, out| {
+        pipeline.set_fusion(Box::new(move |set, raw, out| {
+            if let Some(anchors) = commands.poll(set.frame_id) {
+                fusion.set_turn_anchors(anchors);
+            }
             fusion.process(raw, out);
+            fused_health.record_turns(|rod| fusion.rod_turn_stats(rod));
             if let Ok(mut list) = overruled.lock() {
                 list.clear();
                 list.extend_from_slice(fusion.overruled());
@@ -539,7 +605,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
             })
             .map_err(|e| SdkError::Runtime(format!("cannot start the monitor thread: {e}")))?
     };
-    let result = pipeline.run_direct(sink);
+    let result = pipeline.run_direct(CountingSink::new(sink, keys));
     done.store(true, Ordering::SeqCst);
     let _ = monitor.join();
     let (report, sink) = result.map_err(|e| SdkError::Io {
@@ -550,14 +616,16 @@ fn run_cameras<S: MeasurementSink + 'static>(
         .iter()
         .map(|t| t.histogram.lock().map(|h| h.summary()).unwrap_or_default())
         .collect();
+    let rods = crate::health::merge(&health, &sink);
     Ok((
         RunReport {
             pipeline: report,
             tracker,
             config,
             warnings: warnings.load(Ordering::Relaxed),
+            rods,
         },
-        sink,
+        sink.inner,
     ))
 }
 

@@ -163,6 +163,9 @@ fn run_demo(args: &Args) -> Result<()> {
     let console = Arc::new(console);
     let hooks = LiveHooks(ConsoleHooks::new(console.clone(), &cameras));
     let session = Session::from_cameras(cameras, SessionOptions::default());
+    console.attach_session(Arc::new(crate::console_hooks::SessionCommands(
+        session.control(),
+    )));
     let stop = session.stop_flag();
     crate::track::install_ctrlc(stop.clone());
     if let Some(secs) = args.seconds {

@@ -4,8 +4,20 @@
 use rodtrack_console::{CameraOverlays, ConsoleHandle, RodOverlay};
 use rodtrack_core::{CameraPipeline, Measurement};
 use rodtrack_io::{FrameBuffer, FrameMeta};
-use rodtrack_sdk::{Hooks, Progress, SessionCamera};
+use rodtrack_sdk::{Hooks, Progress, SessionCamera, SessionControl};
 use std::sync::{Arc, Mutex};
+
+/// The console's commands to a running session (its "Re-anchor" control).
+#[derive(Debug)]
+pub struct SessionCommands(pub SessionControl);
+
+impl rodtrack_console::SessionCommands for SessionCommands {
+    fn reanchor(&self, camera: Option<u32>, rod: u32, turns: i64) -> Result<(), String> {
+        self.0
+            .reanchor(camera, rod, turns)
+            .map_err(|e| e.to_string())
+    }
+}
 
 /// A live frame's overlays between a camera's tracker and its frame hook: made for the frame
 /// `frame_id` (None when no frame waits for the hook).

@@ -122,6 +122,11 @@ pub fn run(args: Args) -> Result<()> {
         stop_on_broken_pipe: Some(stop.clone()),
     };
     install_ctrlc(stop);
+    if let Some(c) = &console {
+        c.attach_session(Arc::new(crate::console_hooks::SessionCommands(
+            session.control(),
+        )));
+    }
     let hooks = CliHooks::new(
         true,
         console.map(|c| ConsoleHooks::new(c, session.cameras())),

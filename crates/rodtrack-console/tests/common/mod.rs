@@ -3,8 +3,8 @@
 #![allow(dead_code, clippy::unwrap_used)]
 
 use rodtrack_console::{CameraOverlays, CameraSetup, ConsoleHandle, OwnedFrame, PipelineStats};
-use rodtrack_core::calib::{calibrate_rod, CameraCalibration};
-use rodtrack_core::{CameraId, CameraIntrinsics, CameraPipeline, FrameSetFilter, FrameView, Mode};
+use rodtrack_core::calib::{calibrate_camera_from_view, CameraCalibration};
+use rodtrack_core::{CameraId, CameraPipeline, FrameSetFilter, FrameView, Mode};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
 use serde_json::{json, Value};
 use std::io::{Read, Write};
@@ -377,25 +377,8 @@ impl Demo {
             let meta = sim.render_reference(c, &mut buf).unwrap();
             let view =
                 FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
-            let intr = inputs
-                .opencv_model_optional
-                .as_ref()
-                .map(|m| CameraIntrinsics::from_opencv(m.camera_matrix, &m.dist_coeffs).unwrap());
-            let rods = inputs
-                .rods
-                .iter()
-                .map(|r| calibrate_rod(r, &view, intr.as_ref()).unwrap())
-                .collect();
-            cals.push(CameraCalibration {
-                name: inputs.camera_name.clone(),
-                index: c as u32,
-                image_width: meta.width,
-                image_height: meta.height,
-                pixel_format: meta.format.name().to_string(),
-                fps: inputs.fps.unwrap_or(200.0),
-                opencv_model: inputs.opencv_model_optional.clone(),
-                rods,
-            });
+            // Every rod of the camera together, as `rodtrack calibrate` and the console do.
+            cals.push(calibrate_camera_from_view(&inputs, &view, c as u32, 200.0).unwrap());
             setups.push(CameraSetup {
                 index: c as u32,
                 inputs,
