@@ -15,6 +15,9 @@ use rodtrack_eval::quality::{
     bands, calibrate_table, coverage, format_bands, run_scene, Scene, ScoredRow,
 };
 
+/// One table's coverage of one scene: (seed, coverage, visible rows).
+type TableCoverage = (u64, f64, usize);
+
 fn arg(i: usize, default: u64) -> Result<u64, String> {
     match std::env::args().nth(i) {
         None => Ok(default),
@@ -31,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t0 = std::time::Instant::now();
     let mut all: Vec<ScoredRow> = Vec::new();
     // Per scene: each table's coverage of visible rows.
-    let mut cov: Vec<(Scene, Vec<(u64, f64, usize)>)> =
+    let mut cov: Vec<(Scene, Vec<TableCoverage>)> =
         Scene::ALL.iter().map(|&s| (s, Vec::new())).collect();
     for seed in first..first + tables {
         let cal = calibrate_table(seed)?;

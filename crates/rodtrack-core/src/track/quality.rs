@@ -76,7 +76,7 @@ pub(super) struct QualityInputs {
 /// The quality factors: `(q_phase, q_amplitude, q_position, q_code)`, each in `[0, 1]`.
 pub(super) fn factors(q: &QualityInputs) -> (f64, f64, f64, f64) {
     let share = q.stripe_share;
-    let q_phase = if !(share > 0.0) {
+    let q_phase = if share.is_nan() || share <= 0.0 {
         0.0
     } else if share >= 1.0 {
         1.0
