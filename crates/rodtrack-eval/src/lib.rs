@@ -5,6 +5,8 @@
 //! - [`sim_run`]: the simulator's cameras through an SDK [`rodtrack_sdk::Session`], the
 //!   paper's algorithm on the same frames alongside.
 //! - [`plan`]: what each scenario runs ([`plan::plan_for`]).
+//! - [`quality`]: what a row's quality says about its error, over many random tables
+//!   ([`quality::run_table`], [`quality::bands`]).
 //! - [`run`]: the scenarios run and scored ([`run::run_plans`]).
 //! - [`report`]: the Markdown report, `summary.json` and the plots ([`report::write_report`]),
 //!   drawn by [`figures`] with [`plots`].
@@ -14,6 +16,7 @@ pub mod figures;
 pub mod plan;
 pub mod plots;
 mod progress;
+pub mod quality;
 pub mod report;
 pub mod run;
 pub mod score;

@@ -141,6 +141,7 @@ impl EnhancedState {
             position_mm: position,
             position_out_mm: position_out,
             edge_std_mm: edge_std,
+            edges_used: n_in as usize,
         })
     }
 }

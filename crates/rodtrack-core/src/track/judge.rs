@@ -1,9 +1,10 @@
 //! Step 6: the phase fused with the Gray code, their consistency, and the status and quality.
 
 use super::agree::CodeCheck;
+use super::quality::{quality, QualityInputs};
 use super::result::RodResult;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
-use super::tuning::{MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
+use super::tuning::{CODE_CHECK_SLOW_STEPS, MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
 use crate::angle::wrap_2pi;
 use crate::calib::RodCalibration;
 use crate::marker::Marker;
@@ -94,11 +95,28 @@ impl EnhancedState {
             status = Status::Occluded;
             reason = "Gray code and phase disagree";
         }
-        let q_ncc = ((ncc - 0.5) / 0.45).clamp(0.0, 1.0);
-        let q_amp = amp_ratio.clamp(0.0, 1.0);
-        let q_edge = (1.0 - edge_std / (0.2 * cell)).clamp(0.0, 1.0);
-        let q_code = (1.0 - (code_dist - 0.5).max(0.0)).clamp(0.0, 1.0);
-        let quality = (q_ncc * q_amp * q_edge * q_code).sqrt().sqrt();
+        // The evidence against the reading's high bits: this frame's check across the rod,
+        // or, when the reading continues the last ok frame's slowly (the check is skipped,
+        // see `agree`), that of the check that started it.
+        let steps_f = steps as f64;
+        let continued = self.last_ok_theta.is_some_and(|prev| {
+            let d = (theta - prev + 0.5 * steps_f).rem_euclid(steps_f) - 0.5 * steps_f;
+            d.abs() < CODE_CHECK_SLOW_STEPS && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS
+        });
+        let code_share = if continued {
+            self.reading_code_share.max(check.worst_share)
+        } else {
+            check.worst_share
+        };
+        let quality = quality(&QualityInputs {
+            stripe_share: ph.share,
+            amp_ratio,
+            edge_std_mm: edge_std,
+            edges: inter.edges.edges_used,
+            code_share,
+            wrong_share: self.code_wrong_share,
+            cycles: (steps / 4) as f64,
+        });
         if status == Status::Ok {
             self.last_k = Some(k);
             let s = steps as f64;
@@ -107,6 +125,7 @@ impl EnhancedState {
                 None => s,
             };
             self.last_ok_theta = Some(theta);
+            self.reading_code_share = code_share;
         } else {
             self.last_ok_theta = None;
         }

@@ -23,6 +23,7 @@ mod locate;
 mod paper;
 mod phase;
 mod prefetch;
+mod quality;
 mod result;
 mod shading;
 mod silhouette;

@@ -102,6 +102,10 @@ pub(super) struct EnhancedState {
     /// it had moved from the frame before (see `agree`).
     pub(super) last_ok_theta: Option<f64>,
     pub(super) last_dtheta: f64,
+    /// The code's disagreement with the print across the rod (see `agree`) of the check that
+    /// started the reading the last ok frame continued (the quality's evidence, see
+    /// `quality`).
+    pub(super) reading_code_share: f64,
     /// Frames in a row not measured `ok` (see `fresh`).
     pub(super) not_ok_run: u64,
     /// Fresh searches from the calibration alone, and those that reset the learnt state.
@@ -139,6 +143,8 @@ pub(super) struct EdgeFit {
     pub(super) position_out_mm: f64,
     /// Spread of the edges around their fit, mm.
     pub(super) edge_std_mm: f64,
+    /// Edges the fit used.
+    pub(super) edges_used: usize,
 }
 
 /// One frame's results between stages.
@@ -306,6 +312,7 @@ impl EnhancedState {
             not_ok_run: 0,
             last_ok_theta: None,
             last_dtheta: 0.0,
+            reading_code_share: 0.0,
             fresh_searches: 0,
             learnt_resets: 0,
             backup: Learnt::with_sizes(eps_values.len(), n_phase),
