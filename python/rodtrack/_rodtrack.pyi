@@ -41,7 +41,10 @@ class Rows:
         """The camera's frame id."""
     @property
     def timestamp_s(self) -> npt.NDArray[np.float64]:
-        """Capture time, seconds."""
+        """Capture time, seconds (``timestamp_ns * 1e-9``, as the CSV prints it)."""
+    @property
+    def timestamp_ns(self) -> npt.NDArray[np.uint64]:
+        """Capture time, nanoseconds from the source's epoch: the exact value the record carries."""
     @property
     def camera(self) -> npt.NDArray[np.int64]:
         """The camera's index, or -1 (``FUSED``) for fused rows."""

@@ -145,8 +145,10 @@ fn first_len(lens: &[usize]) -> usize {
 columns! {
     /// The camera's frame id.
     frame: u64 = |m| m.frame;
-    /// Capture time, seconds.
-    timestamp_s: f64 = |m| m.timestamp_s;
+    /// Capture time, seconds (``timestamp_ns * 1e-9``, as the CSV prints it).
+    timestamp_s: f64 = |m| m.timestamp_s();
+    /// Capture time, nanoseconds from the source's epoch: the exact value the record carries.
+    timestamp_ns: u64 = |m| m.timestamp_ns.as_nanos();
     /// The camera's index, or -1 (`FUSED`) for fused rows.
     camera: i64 = |m| camera_code(m.camera);
     /// Rod id.
@@ -191,11 +193,19 @@ mod tests {
                 "column {c} missing from the binding"
             );
         }
-        let mut m = Measurement::empty(7, 0.035, CameraId::Fused, 3, Status::Occluded);
+        let mut m = Measurement::empty(
+            7,
+            rodtrack_core::Timestamp(35_000_000),
+            CameraId::Fused,
+            3,
+            Status::Occluded,
+        );
         m.position_mm = -12.5;
         let c = Columns::of([&m, &m]);
         assert_eq!(c.len(), 2);
         assert_eq!(c.frame, [7, 7]);
+        assert_eq!(c.timestamp_ns, [35_000_000; 2]);
+        assert_eq!(c.timestamp_s, [0.035; 2]);
         assert_eq!(c.camera, [FUSED_CAMERA; 2]);
         assert_eq!(c.position_mm, [-12.5; 2]);
         assert_eq!(c.status, [2, 2]);

@@ -56,7 +56,13 @@ fn main() {
     let mut rows = Vec::new();
     for cam in [CameraId::Camera(0), CameraId::Camera(1), CameraId::Fused] {
         for rod in 0..8 {
-            rows.push(Measurement::empty(1, 0.005, cam, rod, Status::Ok));
+            rows.push(Measurement::empty(
+                1,
+                rodtrack_core::Timestamp::from_secs_f64(0.005),
+                cam,
+                rod,
+                Status::Ok,
+            ));
         }
     }
     let t_rows = time(200, 500, || console.publish_rows(black_box(&rows)));

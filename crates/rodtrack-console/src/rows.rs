@@ -51,7 +51,7 @@ pub(crate) fn status_code(s: Status) -> u8 {
 impl PlotRow {
     pub(crate) fn new(m: &Measurement) -> PlotRow {
         PlotRow {
-            timestamp_s: m.timestamp_s,
+            timestamp_s: m.timestamp_s(),
             angle_unwrapped_rad: m.angle_unwrapped_rad,
             position_mm: m.position_mm as f32,
             angle_rad: m.angle_rad as f32,
@@ -222,7 +222,15 @@ mod tests {
 
     fn rows(t: f64, n: u32) -> Vec<Measurement> {
         (0..n)
-            .map(|rod| Measurement::empty(1, t, CameraId::Camera(0), rod, Status::Ok))
+            .map(|rod| {
+                Measurement::empty(
+                    1,
+                    rodtrack_core::Timestamp::from_secs_f64(t),
+                    CameraId::Camera(0),
+                    rod,
+                    Status::Ok,
+                )
+            })
             .collect()
     }
 
@@ -232,7 +240,13 @@ mod tests {
 
     #[test]
     fn rows_are_packed_losslessly_enough() {
-        let mut m = Measurement::empty(1, 12.345678, CameraId::Camera(3), 7, Status::Occluded);
+        let mut m = Measurement::empty(
+            1,
+            rodtrack_core::Timestamp::from_secs_f64(12.345678),
+            CameraId::Camera(3),
+            7,
+            Status::Occluded,
+        );
         m.position_mm = -12.5;
         m.angle_rad = 1.25;
         m.angle_unwrapped_rad = 1234.5678;
@@ -246,9 +260,15 @@ mod tests {
         assert_eq!((k.status, k.turns_known), (7, true));
         assert_eq!(
             (r.timestamp_s, r.angle_unwrapped_rad, r.rod, r.camera),
-            (12.345678, 1234.5678, 7, 3)
+            (m.timestamp_s(), 1234.5678, 7, 3)
         );
-        let fused = Measurement::empty(1, 0.0, CameraId::Fused, 70_000, Status::BadFrame);
+        let fused = Measurement::empty(
+            1,
+            rodtrack_core::Timestamp::from_secs_f64(0.0),
+            CameraId::Fused,
+            70_000,
+            Status::BadFrame,
+        );
         let f = PlotRow::unpack(PlotRow::new(&fused).pack());
         assert_eq!((f.camera, f.rod, f.status), (-1, u16::MAX, 6));
     }
@@ -273,7 +293,15 @@ mod tests {
         let cap = ROW_CAPACITY as u64;
         let batch = |t0: f64, n: usize| -> Vec<Measurement> {
             (0..n)
-                .map(|i| Measurement::empty(1, t0 + i as f64, CameraId::Fused, 0, Status::Ok))
+                .map(|i| {
+                    Measurement::empty(
+                        1,
+                        rodtrack_core::Timestamp::from_secs_f64(t0 + i as f64),
+                        CameraId::Fused,
+                        0,
+                        Status::Ok,
+                    )
+                })
                 .collect()
         };
         ring.publish(&batch(0.0, ROW_CAPACITY - 1), Instant::now());
@@ -284,7 +312,9 @@ mod tests {
         assert_eq!(ring.read(0, ROW_CAPACITY, &mut out), cap + 2);
         assert_eq!(out.len(), ROW_CAPACITY);
         assert_eq!(out.first().map(|r| r.timestamp_s), Some(2.0));
-        assert_eq!(out.last().map(|r| r.timestamp_s), Some(1e6 + 2.0));
+        // The record's seconds: whole nanoseconds times 1e-9 (1000002.0000000001 here).
+        let last_s = rodtrack_core::Timestamp::from_secs_f64(1e6 + 2.0).as_secs_f64();
+        assert_eq!(out.last().map(|r| r.timestamp_s), Some(last_s));
         // More than the ring holds at once: the last ROW_CAPACITY.
         ring.publish(&batch(0.0, ROW_CAPACITY + 5), Instant::now());
         out.clear();

@@ -83,7 +83,13 @@ fn page_shows_frames_and_plots_and_clicks_become_calibration_points() {
                 console.publish_frame(0, &v, k, t, &[overlay]);
                 let rows: Vec<Measurement> = (0..3)
                     .map(|rod| {
-                        let mut m = Measurement::empty(k, t, CameraId::Camera(0), rod, Status::Ok);
+                        let mut m = Measurement::empty(
+                            k,
+                            rodtrack_core::Timestamp::from_secs_f64(t),
+                            CameraId::Camera(0),
+                            rod,
+                            Status::Ok,
+                        );
                         m.position_mm = 50.0 * (t + rod as f64).sin();
                         m.angle_unwrapped_rad = t * (rod as f64 + 1.0);
                         m.quality = 1.0;

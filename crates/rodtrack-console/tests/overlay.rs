@@ -83,8 +83,13 @@ fn cached_overlays_equal_the_ones_computed_from_the_knots() {
         for (c, pipe) in pipes.iter_mut().enumerate() {
             let m = demo.sim.render(f, c, &mut bufs[c]).unwrap();
             let view = FrameView::new(&bufs[c], m.width, m.height, m.stride, m.format).unwrap();
-            pipe.process(&view, f as u64, f as f64 / 200.0, &mut rows)
-                .unwrap();
+            pipe.process(
+                &view,
+                f as u64,
+                rodtrack_core::Timestamp::from_frame(f as u64, 200.0),
+                &mut rows,
+            )
+            .unwrap();
             // Every other frame into the same vector (entries reused), else into a new one.
             if f % 2 == 1 {
                 overlays[c] = Vec::new();

@@ -6,6 +6,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::filter::{FilterBank, FilterConfig, RodFilter};
 use rodtrack_core::fusion::{Fuser, FusionConfig};
+use rodtrack_core::Timestamp;
 use rodtrack_core::{CameraId, Measurement, Status};
 use std::hint::black_box;
 
@@ -17,7 +18,7 @@ fn row(cam: u32, rod: u32, i: u64) -> Measurement {
     let n = ((i.wrapping_mul(0x9E37_79B9) >> 7) % 1000) as f64 / 1000.0 - 0.5;
     Measurement {
         frame: i,
-        timestamp_s: t,
+        timestamp_ns: Timestamp::from_secs_f64(t),
         camera: CameraId::Camera(cam),
         rod,
         position_mm: 40.0 * (3.0 * t).sin() + 0.3 * n,
@@ -50,7 +51,7 @@ fn bench(c: &mut Criterion) {
     g.bench_function("update_tracking", |b| {
         b.iter(|| {
             let mut m = rows[(i % n) as usize];
-            m.timestamp_s = i as f64 * DT;
+            m.timestamp_ns = Timestamp::from_secs_f64(i as f64 * DT);
             i += 1;
             black_box(f.update(black_box(&m)))
         })
@@ -66,7 +67,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let src = if i % 4 == 0 { &rows } else { &wrong };
             let mut m = src[(i % n) as usize];
-            m.timestamp_s = i as f64 * DT;
+            m.timestamp_ns = Timestamp::from_secs_f64(i as f64 * DT);
             i += 1;
             black_box(f.update(black_box(&m)))
         })

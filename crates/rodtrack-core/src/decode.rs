@@ -1,7 +1,7 @@
 //! Angle decoding: the paper's coarse Gray code (2.4), single-bin DFT phase (eq. 6) and the four
 //! fusion steps of 2.5.
 
-use crate::angle::wrap_2pi_f32;
+use crate::angle::{wrap_2pi_f32, wrap_steps_f32};
 use crate::marker::gray_decode;
 use std::f32::consts::TAU;
 
@@ -50,7 +50,7 @@ pub fn paper_fuse(phi: f32, phi_offset: f32, alpha: u32, steps: u32) -> f32 {
     let d = phi_p + alpha_p - alpha as f32;
     let j = (-d / 4.0).round();
     // 4. Combine.
-    (phi_p + alpha_p + 4.0 * j).rem_euclid(steps as f32)
+    wrap_steps_f32(phi_p + alpha_p + 4.0 * j, steps as f32)
 }
 
 #[cfg(test)]

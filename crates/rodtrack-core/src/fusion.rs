@@ -37,6 +37,7 @@
 use crate::angle::{wrap_2pi, wrap_pi};
 use crate::filter::FilterBank;
 use crate::measurement::{CameraId, Measurement, Status};
+use crate::time::Timestamp;
 
 /// Tuning of a [`Fuser`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,7 +111,7 @@ pub struct OutOfSync {
 struct CameraClock {
     camera: CameraId,
     frame: u64,
-    timestamp_s: f64,
+    timestamp_ns: Timestamp,
     in_sync: bool,
 }
 
@@ -248,7 +249,7 @@ impl Fuser {
                 self.clocks.push(CameraClock {
                     camera: m.camera,
                     frame: m.frame,
-                    timestamp_s: m.timestamp_s,
+                    timestamp_ns: m.timestamp_ns,
                     in_sync: true,
                 });
             }
@@ -256,7 +257,7 @@ impl Fuser {
         self.clocks.sort_unstable_by_key(|c| camera_key(c.camera));
         let w = self.cfg.sync_window_s;
         let agree = |a: &CameraClock, b: &CameraClock| {
-            a.frame == b.frame && (a.timestamp_s - b.timestamp_s).abs() <= w
+            a.frame == b.frame && a.timestamp_ns.seconds_since(b.timestamp_ns).abs() <= w
         };
         let mut best = 0;
         let mut best_n = 0;
@@ -276,7 +277,7 @@ impl Fuser {
                     frame: c.frame,
                     reference: reference.camera,
                     reference_frame: reference.frame,
-                    offset_s: c.timestamp_s - reference.timestamp_s,
+                    offset_s: c.timestamp_ns.seconds_since(reference.timestamp_ns),
                 });
             }
         }
@@ -308,7 +309,7 @@ impl Fuser {
         let rod = self.rows[start].rod;
         let mut empty = Measurement::empty(
             reference.frame,
-            reference.timestamp_s,
+            reference.timestamp_ns,
             CameraId::Fused,
             rod,
             Status::NotFound,
@@ -453,7 +454,7 @@ impl Fuser {
         let da = a_sum / wa_sum;
         Measurement {
             frame: reference.frame,
-            timestamp_s: reference.timestamp_s,
+            timestamp_ns: reference.timestamp_ns,
             camera: CameraId::Fused,
             rod: r.rod,
             position_mm: p_sum / wp_sum,

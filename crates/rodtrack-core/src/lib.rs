@@ -14,6 +14,7 @@ pub mod marker;
 pub mod measurement;
 pub mod pipeline;
 pub mod signal;
+pub mod time;
 pub mod track;
 
 pub use camera::{Camera, CameraIntrinsics, Pose};
@@ -22,4 +23,5 @@ pub use frame::{FrameView, LumaKind, PixelFormat};
 pub use marker::{gray, gray_decode, Marker, MarkerSpec};
 pub use measurement::{CameraId, Measurement, Status};
 pub use pipeline::{CameraFilter, CameraPipeline, FrameSetFilter, SetFusion, TurnAnchor};
+pub use time::Timestamp;
 pub use track::{Mode, RodResult, RodTracker, Stage};

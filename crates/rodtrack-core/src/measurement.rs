@@ -1,5 +1,6 @@
 //! The measurement record (SPEC section 6), shared by tracking output and simulator truth.
 
+use crate::time::Timestamp;
 use serde::{Deserialize, Serialize};
 
 /// How far a measurement can be trusted.
@@ -91,8 +92,10 @@ impl std::fmt::Display for CameraId {
 pub struct Measurement {
     /// The camera's frame id.
     pub frame: u64,
-    /// Capture time, seconds.
-    pub timestamp_s: f64,
+    /// Capture time, from the frame's source (written as seconds, `timestamp_s`, in files:
+    /// see [`Measurement::timestamp_s`]).
+    #[serde(rename = "timestamp_s", with = "crate::time::as_secs")]
+    pub timestamp_ns: Timestamp,
     /// Source camera or fused.
     pub camera: CameraId,
     /// Rod id.
@@ -128,10 +131,16 @@ fn known_by_default() -> bool {
 
 impl Measurement {
     /// A record with no value, for a rod that was not measured.
-    pub fn empty(frame: u64, timestamp_s: f64, camera: CameraId, rod: u32, status: Status) -> Self {
+    pub fn empty(
+        frame: u64,
+        timestamp_ns: Timestamp,
+        camera: CameraId,
+        rod: u32,
+        status: Status,
+    ) -> Self {
         Measurement {
             frame,
-            timestamp_s,
+            timestamp_ns,
             camera,
             rod,
             position_mm: 0.0,
@@ -143,6 +152,11 @@ impl Measurement {
             status,
             turns_known: false,
         }
+    }
+
+    /// The capture time in seconds ([`Timestamp::as_secs_f64`]), as files print it.
+    pub fn timestamp_s(&self) -> f64 {
+        self.timestamp_ns.as_secs_f64()
     }
 
     /// Replaces any non-finite number by 0 and marks the row, so that no NaN is ever written.
@@ -160,9 +174,6 @@ impl Measurement {
                 *v = 0.0;
                 bad = true;
             }
-        }
-        if !self.timestamp_s.is_finite() {
-            self.timestamp_s = 0.0;
         }
         if bad && self.status == Status::Ok {
             self.status = Status::NotFound;

@@ -6,6 +6,7 @@ use crate::filter::{FilterBank, FilterConfig, TurnStats};
 use crate::frame::FrameView;
 use crate::fusion::{Disagreement, Fuser, FusionConfig, OutOfSync};
 use crate::measurement::{CameraId, Measurement, Status};
+use crate::time::Timestamp;
 use crate::track::{Mode, RodResult, RodTracker};
 use crate::CoreError;
 
@@ -19,7 +20,7 @@ use crate::CoreError;
 #[derive(Debug, Clone, Copy, Default)]
 struct TurnState {
     last_angle: Option<f64>,
-    last_t: f64,
+    last_t: Timestamp,
     unwrapped: f64,
     known: bool,
     steady: u32,
@@ -27,7 +28,7 @@ struct TurnState {
 
 impl TurnState {
     /// Takes the angle of an `ok` row at time `t`; returns (unwrapped angle, count known).
-    fn take(&mut self, angle_rad: f64, t: f64, cfg: &FilterConfig) -> (f64, bool) {
+    fn take(&mut self, angle_rad: f64, t: Timestamp, cfg: &FilterConfig) -> (f64, bool) {
         match self.last_angle {
             None => {
                 self.unwrapped = angle_rad;
@@ -35,7 +36,7 @@ impl TurnState {
             }
             Some(prev) => {
                 self.unwrapped += wrap_pi_fold(angle_rad - prev);
-                let dt = t - self.last_t;
+                let dt = t.seconds_since(self.last_t);
                 if dt > 0.0 && cfg.max_angular_velocity_rad_s * dt < std::f64::consts::PI {
                     if !self.known {
                         self.steady += 1;
@@ -103,7 +104,7 @@ impl CameraPipeline {
         &mut self,
         frame: &FrameView,
         frame_id: u64,
-        timestamp_s: f64,
+        timestamp_ns: Timestamp,
         out: &mut Vec<Measurement>,
     ) -> Result<(), CoreError> {
         // Ask for every rod's strips of the new frame at once: the reads overlap with each
@@ -125,7 +126,7 @@ impl CameraPipeline {
             *last = r;
             let mut m = Measurement::empty(
                 frame_id,
-                timestamp_s,
+                timestamp_ns,
                 CameraId::Camera(self.index),
                 tr.rod(),
                 r.status,
@@ -134,7 +135,7 @@ impl CameraPipeline {
                 m.position_mm = r.position_mm;
                 m.angle_rad = r.angle_rad;
                 // Multi-turn count: the absolute angle needs no history, the turn count does.
-                let (unwrapped, known) = turn.take(r.angle_rad, timestamp_s, &turn_cfg);
+                let (unwrapped, known) = turn.take(r.angle_rad, timestamp_ns, &turn_cfg);
                 m.angle_unwrapped_rad = unwrapped;
                 m.turns_known = known;
             } else {
@@ -147,11 +148,11 @@ impl CameraPipeline {
     }
 
     /// Rows marking every rod of an unusable frame.
-    pub fn bad_frame(&self, frame_id: u64, timestamp_s: f64, out: &mut Vec<Measurement>) {
+    pub fn bad_frame(&self, frame_id: u64, timestamp_ns: Timestamp, out: &mut Vec<Measurement>) {
         for tr in &self.rods {
             out.push(Measurement::empty(
                 frame_id,
-                timestamp_s,
+                timestamp_ns,
                 CameraId::Camera(self.index),
                 tr.rod(),
                 Status::BadFrame,

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use rodtrack_core::angle::{wrap_2pi, wrap_pi};
+use rodtrack_core::Timestamp;
 use rodtrack_core::{CameraId, FrameSetFilter, Measurement, Mode, Status};
 use std::f64::consts::TAU;
 
@@ -16,7 +17,7 @@ fn raw(camera: u32, i: u64, offset_rad: f64) -> Measurement {
     let noise = 0.001 * ((i as f64 * 1.7 + camera as f64).sin());
     let mut m = Measurement::empty(
         i,
-        1.0 + i as f64 / FPS,
+        Timestamp::from_secs_f64(1.0 + i as f64 / FPS),
         CameraId::Camera(camera),
         2,
         Status::Ok,

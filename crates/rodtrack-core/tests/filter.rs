@@ -6,6 +6,7 @@
 use rodtrack_core::angle::{wrap_2pi, wrap_pi};
 use rodtrack_core::filter::{FilterBank, FilterConfig, Rejection, RodFilter};
 use rodtrack_core::fusion::{Fuser, FusionConfig};
+use rodtrack_core::Timestamp;
 use rodtrack_core::{CameraId, Measurement, Status};
 use std::f64::consts::{PI, TAU};
 
@@ -41,7 +42,7 @@ fn truth(n: usize, f: impl Fn(f64) -> (f64, f64)) -> Vec<Truth> {
 fn row(cam: u32, i: usize, tr: &Truth, rng: &mut Rng) -> Measurement {
     Measurement {
         frame: i as u64,
-        timestamp_s: tr.t,
+        timestamp_ns: Timestamp::from_secs_f64(tr.t),
         camera: CameraId::Camera(cam),
         rod: 3,
         position_mm: tr.position_mm + SIGMA_POS * rng.gauss(),
@@ -56,7 +57,7 @@ fn row(cam: u32, i: usize, tr: &Truth, rng: &mut Rng) -> Measurement {
 }
 
 fn missing(m: &Measurement, status: Status) -> Measurement {
-    Measurement::empty(m.frame, m.timestamp_s, m.camera, m.rod, status)
+    Measurement::empty(m.frame, m.timestamp_ns, m.camera, m.rod, status)
 }
 
 /// Errors of one filtered row against the truth; the angle error uses the unwrapped angle, so
@@ -733,7 +734,7 @@ fn out_of_sync_camera_is_detected_and_left_out() {
     let mut out = Vec::new();
     // Camera 1 is 3 ms late.
     let mut rows = two_cameras(42, &t, &mut rng);
-    rows[1].timestamp_s += 0.003;
+    rows[1].timestamp_ns = Timestamp(rows[1].timestamp_ns.as_nanos() + 3_000_000);
     rows[1].position_mm += 20.0;
     fuser.fuse(&rows, None, &mut out);
     let s = fuser.out_of_sync();
@@ -746,9 +747,9 @@ fn out_of_sync_camera_is_detected_and_left_out() {
         (out[0].position_mm - 5.0).abs() < 1.5,
         "the late camera is not fused"
     );
-    assert_eq!(out[0].timestamp_s, 2.0);
+    assert_eq!(out[0].timestamp_s(), 2.0);
     // Within the window: in sync.
-    rows[1].timestamp_s = 2.0005;
+    rows[1].timestamp_ns = Timestamp::from_secs_f64(2.0005);
     rows[1].position_mm = rows[0].position_mm;
     out.clear();
     fuser.fuse(&rows, None, &mut out);
@@ -809,4 +810,52 @@ fn fusion_of_missing_rows_keeps_one_row_per_rod() {
     assert_eq!(out[1].status, Status::Ok);
     assert_eq!(out[2].status, Status::NotFound);
     assert_eq!(out[2].position_mm, 0.0);
+}
+
+#[test]
+fn coasting_ends_at_max_coast_whatever_the_clock_reads() {
+    // A still rod measured at 200 fps, then unmeasured: the prediction lasts exactly
+    // `max_coast_s` (0.1 s = 20 frames) after the last accepted row, and the row after is
+    // lost. The time since that row is an exact difference of nanoseconds, so the boundary
+    // does not depend on the clock's epoch. (In f64 seconds, 0.735 s - 0.635 s came out as
+    // 0.10000000000000009 s, past the limit: frame 147 of a track last seen at frame 127 was
+    // lost one frame early, and an epoch of 1e6 s moved the boundary again.)
+    let cfg = FilterConfig::default();
+    assert_eq!(cfg.max_coast_s, 0.1);
+    let still = Truth {
+        t: 0.0,
+        position_mm: 12.0,
+        angle_rad: 1.0,
+    };
+    for epoch_ns in [0u64, 1_000_000_000_000_000, 123_456_789_012_345_678] {
+        let mut f = RodFilter::new(cfg);
+        let mut rng = Rng::new(3);
+        let at = |i: u64| Timestamp(epoch_ns + Timestamp::from_frame(i, FPS).as_nanos());
+        for i in 0..=127u64 {
+            let mut m = row(0, i as usize, &still, &mut rng);
+            m.timestamp_ns = at(i);
+            assert_eq!(
+                m.timestamp_ns.seconds_since(at(0)),
+                Timestamp::from_frame(i, FPS).as_secs_f64()
+            );
+            let o = f.update(&m);
+            if i > 10 {
+                assert_eq!(o.status, Status::Ok, "frame {i}, epoch {epoch_ns} ns");
+            }
+        }
+        let mut statuses = Vec::new();
+        for i in 128..=149u64 {
+            let mut m = missing(&row(0, i as usize, &still, &mut rng), Status::NotFound);
+            m.timestamp_ns = at(i);
+            statuses.push((i, f.update(&m).status));
+        }
+        for (i, s) in statuses {
+            let want = if i <= 147 {
+                Status::Predicted
+            } else {
+                Status::Lost
+            };
+            assert_eq!(s, want, "frame {i}, epoch {epoch_ns} ns");
+        }
+    }
 }

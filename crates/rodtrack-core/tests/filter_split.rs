@@ -1,6 +1,7 @@
 //! The temporal filter run in parts (each camera's filter in its own thread, the fusion
 //! apart), as the runtime runs it, gives the rows of [`FrameSetFilter`] over each set.
 
+use rodtrack_core::Timestamp;
 use rodtrack_core::{CameraFilter, CameraId, FrameSetFilter, Measurement, Mode, SetFusion, Status};
 
 /// A frame set of `ncam` cameras x 8 rods: motion, noise, an occluded rod, a camera that
@@ -21,7 +22,13 @@ fn frame_set(frame: u64, ncam: u32, noise: &mut u64) -> Vec<Measurement> {
             } else {
                 Status::Ok
             };
-            let mut m = Measurement::empty(frame, t, CameraId::Camera(cam), rod, status);
+            let mut m = Measurement::empty(
+                frame,
+                Timestamp::from_secs_f64(t),
+                CameraId::Camera(cam),
+                rod,
+                status,
+            );
             if status == Status::Ok {
                 let phase = f64::from(rod);
                 m.position_mm = 40.0 * (6.0 * t + phase).sin() + 0.05 * rnd();
@@ -30,7 +37,7 @@ fn frame_set(frame: u64, ncam: u32, noise: &mut u64) -> Vec<Measurement> {
                 }
                 let angle = 3.0 * t * (1.0 + phase) + 0.004 * rnd();
                 m.angle_unwrapped_rad = angle;
-                m.angle_rad = angle.rem_euclid(std::f64::consts::TAU);
+                m.angle_rad = rodtrack_core::angle::wrap_2pi(angle);
                 m.quality = if frame % 23 == 0 { 0.1 } else { 0.9 };
             }
             rows.push(m);

@@ -6,6 +6,7 @@
 
 use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::filter::{FilterConfig, RodFilter};
+use rodtrack_core::Timestamp;
 use rodtrack_core::{CameraId, Measurement, Status};
 use std::f64::consts::{PI, TAU};
 
@@ -88,9 +89,21 @@ fn run(spin: SpinUp, frames: usize, drop_p: f64, seed: u64) -> Run {
         }
         let m = if burst > 0 {
             burst -= 1;
-            Measurement::empty(i as u64, 1.0 + t, CameraId::Camera(0), 5, Status::NotFound)
+            Measurement::empty(
+                i as u64,
+                Timestamp::from_secs_f64(1.0 + t),
+                CameraId::Camera(0),
+                5,
+                Status::NotFound,
+            )
         } else {
-            let mut m = Measurement::empty(i as u64, 1.0 + t, CameraId::Camera(0), 5, Status::Ok);
+            let mut m = Measurement::empty(
+                i as u64,
+                Timestamp::from_secs_f64(1.0 + t),
+                CameraId::Camera(0),
+                5,
+                Status::Ok,
+            );
             m.position_mm = 10.0 + 0.05 * rng.gauss();
             m.angle_rad = wrap_2pi(truth + 0.003 * rng.gauss());
             m.quality = 0.95;

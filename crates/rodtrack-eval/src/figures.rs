@@ -6,7 +6,6 @@ use crate::score::wrap_angle;
 use crate::Result;
 use plotters::style::RGBColor;
 use rodtrack_core::{CameraId, Measurement, Status};
-use std::f64::consts::TAU;
 use std::path::Path;
 
 /// Aligns a measured unwrapped angle on the truth's turn count at its first row (the turn
@@ -21,7 +20,7 @@ fn align_turns(meas: &mut [(f64, f64)], truth: &[(f64, f64)]) {
     else {
         return;
     };
-    let k = ((b0 - a0) / TAU).round() * TAU;
+    let k = rodtrack_core::angle::whole_turns(b0 - a0);
     for p in meas.iter_mut() {
         p.1 += k;
     }
@@ -43,7 +42,7 @@ fn series_of(
             } else {
                 f64::NAN
             };
-            (m.timestamp_s, y)
+            (m.timestamp_s(), y)
         })
         .collect();
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -56,7 +55,7 @@ fn truth_of(rows: &Rows, rod: u32, value: impl Fn(&Measurement) -> f64) -> Vec<(
     let mut v: Vec<(f64, f64)> = rows
         .iter()
         .filter(|(m, _)| m.rod == rod && seen.insert(m.frame))
-        .map(|(m, _)| (m.timestamp_s, value(m)))
+        .map(|(m, _)| (m.timestamp_s(), value(m)))
         .collect();
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
     v
@@ -77,7 +76,7 @@ fn angle_error_of(rows: &Rows, truth: &Rows, rod: u32, camera: CameraId) -> Vec<
                 (Status::Ok, Some(a)) => wrap_angle(m.angle_rad - a),
                 _ => f64::NAN,
             };
-            (m.timestamp_s, y)
+            (m.timestamp_s(), y)
         })
         .collect();
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -384,11 +383,11 @@ pub fn write_figures(out: &Path, results: &[ScenarioResult]) -> Result<Vec<(Stri
 fn bound_lines(truth: &Rows, b: f64) -> Vec<(f64, f64)> {
     let t0 = truth
         .iter()
-        .map(|(m, _)| m.timestamp_s)
+        .map(|(m, _)| m.timestamp_s())
         .fold(f64::INFINITY, f64::min);
     let t1 = truth
         .iter()
-        .map(|(m, _)| m.timestamp_s)
+        .map(|(m, _)| m.timestamp_s())
         .fold(f64::NEG_INFINITY, f64::max);
     vec![(t0, b), (t1, b), (f64::NAN, f64::NAN), (t0, -b), (t1, -b)]
 }

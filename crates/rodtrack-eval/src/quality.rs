@@ -286,7 +286,7 @@ pub fn run_scene(
             let meta = sim.render(f, c, &mut buf)?;
             let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)?;
             raw.clear();
-            pipe.process(&view, meta.frame_id, meta.timestamp_s, &mut raw)?;
+            pipe.process(&view, meta.frame_id, meta.timestamp_ns, &mut raw)?;
             let truth = sim.truth(f, c)?;
             for (i, m) in raw.iter().enumerate() {
                 let Some(t) = truth.iter().find(|t| t.m.rod == m.rod) else {

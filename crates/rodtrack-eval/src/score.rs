@@ -178,7 +178,9 @@ pub fn score(
         let Some((tm, _)) = found else { continue };
         let d = m.angle_unwrapped_rad - tm.angle_unwrapped_rad;
         let k = (key(m).1, m.rod);
-        let o = *origin.entry(k).or_insert((d / TAU).round() * TAU);
+        let o = *origin
+            .entry(k)
+            .or_insert(rodtrack_core::angle::whole_turns(d));
         if (d - o).abs() > std::f64::consts::PI {
             out.entry(Some(m.rod)).or_default().turn_slips += 1;
             out.entry(None).or_default().turn_slips += 1;
@@ -247,7 +249,7 @@ mod tests {
     fn row(frame: u64, rod: u32, pos: f64, ang: f64, status: Status) -> Measurement {
         let mut m = Measurement::empty(
             frame,
-            frame as f64 / 200.0,
+            rodtrack_core::Timestamp::from_frame(frame, 200.0),
             CameraId::Camera(0),
             rod,
             status,

@@ -78,7 +78,7 @@ impl Hooks for Hooked {
             if let Some(p) = paper.as_mut() {
                 let mut rows = Vec::new();
                 let t = Instant::now();
-                let ts = buf.meta.timestamp_ns.as_secs_f64();
+                let ts = buf.meta.timestamp_ns;
                 if p.process(&view, buf.meta.frame_id, ts, &mut rows).is_ok() {
                     let us = t.elapsed().as_secs_f64() * 1e6;
                     if let Ok(mut r) = self.rows.lock() {

@@ -38,7 +38,7 @@ fn rows() -> Vec<Measurement> {
     (0..24)
         .map(|i| Measurement {
             frame: 123_456,
-            timestamp_s: 617.28,
+            timestamp_ns: rodtrack_io::Timestamp::from_secs_f64(617.28),
             camera: if i < 16 {
                 CameraId::Camera(i / 8)
             } else {

@@ -7,54 +7,10 @@
 
 use crate::IoError;
 use crossbeam_channel::{Receiver, Sender};
+pub use rodtrack_core::Timestamp;
 use rodtrack_core::{CoreError, FrameView, PixelFormat};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
-
-/// A capture time in nanoseconds (from the source's own epoch: camera clock, first frame, ...).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
-pub struct Timestamp(pub u64);
-
-impl Timestamp {
-    /// From nanoseconds.
-    pub const fn from_nanos(ns: u64) -> Self {
-        Timestamp(ns)
-    }
-    /// From seconds; negative and non-finite values give 0.
-    pub fn from_secs_f64(s: f64) -> Self {
-        if s.is_finite() && s > 0.0 {
-            Timestamp((s * 1e9).round() as u64)
-        } else {
-            Timestamp(0)
-        }
-    }
-    /// Nanoseconds.
-    pub const fn as_nanos(self) -> u64 {
-        self.0
-    }
-    /// Seconds.
-    pub fn as_secs_f64(self) -> f64 {
-        self.0 as f64 * 1e-9
-    }
-    /// The time of frame `frame_id` at a constant `fps` (frame 0 at time 0). Exact for whole
-    /// frame rates; 0 for a rate that is not finite and positive.
-    pub fn from_frame(frame_id: u64, fps: f64) -> Self {
-        if !(fps > 0.0 && fps.is_finite()) {
-            return Timestamp(0);
-        }
-        if fps.fract() == 0.0 && fps <= u64::MAX as f64 {
-            let ns = u128::from(frame_id) * 1_000_000_000 / fps as u128;
-            return Timestamp(u64::try_from(ns).unwrap_or(u64::MAX));
-        }
-        Timestamp((frame_id as f64 * 1e9 / fps).round() as u64)
-    }
-}
-
-impl std::fmt::Display for Timestamp {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{:.9} s", self.as_secs_f64())
-    }
-}
 
 /// What is known about one frame besides its pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -276,20 +232,6 @@ impl BufferPool {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-
-    #[test]
-    fn timestamps_convert() {
-        assert_eq!(Timestamp::from_frame(3, 200.0).as_nanos(), 15_000_000);
-        assert_eq!(Timestamp::from_secs_f64(1.5).as_nanos(), 1_500_000_000);
-        assert_eq!(Timestamp::from_secs_f64(f64::NAN).as_nanos(), 0);
-        assert_eq!(Timestamp::from_frame(3, 0.0).as_nanos(), 0);
-        assert_eq!(Timestamp::from_frame(1, 3.0).as_nanos(), 333_333_333);
-        assert_eq!(
-            Timestamp::from_frame(10_000_000_019, 227.0).as_nanos(),
-            44_052_863_519_823_788
-        );
-        assert_eq!(Timestamp::from_frame(2, 2.5).as_nanos(), 800_000_000);
-    }
 
     #[test]
     fn pool_recycles_without_new_allocations() {

@@ -408,7 +408,7 @@ fn two_image_folders_through_the_pipeline_to_csv() {
         .filter(|(m, _)| m.status == Status::BadFrame)
         .collect();
     assert_eq!(
-        (bad.len(), bad[0].0.frame, bad[0].0.timestamp_s),
+        (bad.len(), bad[0].0.frame, bad[0].0.timestamp_s()),
         (1, 107, 1.07)
     );
     let ok = rows

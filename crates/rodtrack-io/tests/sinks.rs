@@ -6,6 +6,7 @@ use rodtrack_core::{CameraId, Measurement, Status};
 use rodtrack_io::sink::{
     decode_udp_packet, encode_udp_packet, parse_measurements_csv, UDP_HEADER_BYTES, UDP_ROW_BYTES,
 };
+use rodtrack_io::Timestamp;
 use rodtrack_io::{
     read_measurements_csv, read_measurements_jsonl, CsvSink, JsonlSink, MeasurementSink, UdpSink,
 };
@@ -22,7 +23,7 @@ fn tmpdir(name: &str) -> PathBuf {
 fn row(frame: u64, camera: CameraId, rod: u32) -> Measurement {
     Measurement {
         frame,
-        timestamp_s: frame as f64 / 200.0,
+        timestamp_ns: Timestamp::from_frame(frame, 200.0),
         camera,
         rod,
         position_mm: -12.345_67 + rod as f64,
@@ -43,7 +44,13 @@ fn sample_rows() -> Vec<Measurement> {
         row(10, CameraId::Camera(0), 0),
         unknown,
         row(10, CameraId::Fused, 3),
-        Measurement::empty(11, 0.055, CameraId::Camera(0), 2, Status::Occluded),
+        Measurement::empty(
+            11,
+            Timestamp::from_secs_f64(0.055),
+            CameraId::Camera(0),
+            2,
+            Status::Occluded,
+        ),
     ];
     let mut nan = row(11, CameraId::Camera(1), 5);
     nan.position_mm = f64::NAN;
@@ -58,7 +65,7 @@ fn assert_close(a: &Measurement, b: &Measurement) {
         (b.frame, b.camera, b.rod, b.status, b.turns_known)
     );
     for (x, y, tol) in [
-        (s.timestamp_s, b.timestamp_s, 1e-9),
+        (s.timestamp_s(), b.timestamp_s(), 1e-9),
         (s.position_mm, b.position_mm, 5e-5),
         (s.angle_rad, b.angle_rad, 5e-7),
         (s.angle_unwrapped_rad, b.angle_unwrapped_rad, 5e-7),

@@ -2,6 +2,26 @@
 //! frames analysed are decoded), its rods found and followed ([`rodtrack_core::calib::auto`]),
 //! their calibration inputs derived and saved beside the reference frame, and the rods
 //! calibrated from them.
+//!
+//! ```no_run
+//! use rodtrack_core::MarkerSpec;
+//! use rodtrack_sdk::auto::{auto_camera, open_sweep, print_note, save_auto_inputs, AutoConfig};
+//! let marker_spec = MarkerSpec::default();
+//! let cfg = AutoConfig {
+//!     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+//!     marker_spec,
+//!     reference_frame: 0,
+//!     travel_mm: None,
+//!     max_frames: None,
+//!     fps: None,
+//!     note: print_note,
+//! };
+//! let mut cam = auto_camera(0, open_sweep("sweep/cam0", 0, None, None, &cfg)?, &cfg, None, None)?;
+//! save_auto_inputs("sweep/cam0.json".as_ref(), &mut cam)?;
+//! let file = rodtrack_sdk::calibration_file(vec![cam.calibration])?;
+//! rodtrack_sdk::write_calibration("table.toml".as_ref(), &file)?;
+//! # Ok::<(), rodtrack_sdk::SdkError>(())
+//! ```
 
 use crate::error::Context;
 use crate::{source_factory, SdkError};
@@ -24,9 +44,30 @@ macro_rules! invalid {
 }
 
 /// Frames analysed by default per camera.
+///
+/// ```
+/// assert_eq!(rodtrack_sdk::auto::DEFAULT_ANALYSED_FRAMES, 150);
+/// ```
 pub const DEFAULT_ANALYSED_FRAMES: u64 = 150;
 
 /// What every camera shares.
+///
+/// ```
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate()?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// assert_eq!(cfg.marker.steps(), 32);
+/// # Ok::<(), rodtrack_core::CoreError>(())
+/// ```
 pub struct AutoConfig {
     /// The markers' description.
     pub marker_spec: MarkerSpec,
@@ -46,11 +87,36 @@ pub struct AutoConfig {
 }
 
 /// Prints a note of the automatic calibration on standard error.
+///
+/// ```
+/// use rodtrack_sdk::auto::print_note;
+/// let note: fn(&str) = print_note; // an AutoConfig's `note`
+/// note("camera 0: 150 frames analysed");
+/// ```
 pub fn print_note(msg: &str) {
     eprintln!("{msg}");
 }
 
 /// One camera's input, opened.
+///
+/// ```no_run
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// // Camera 0's sweep: a folder of images in which the rods are pushed and turned.
+/// let sweep = rodtrack_sdk::auto::open_sweep("sweep/cam0", 0, None, None, &cfg)?;
+/// println!("{}: {:?} frames, every {}", sweep.camera_name, sweep.total, sweep.every);
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub struct SweepInput {
     /// The input as given.
     pub input: String,
@@ -70,6 +136,26 @@ pub struct SweepInput {
 }
 
 /// Opens one camera's input; of an image folder only the frames analysed are kept.
+///
+/// ```no_run
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// // Any input the sources take; with a pixel format for images that do not say theirs.
+/// let fmt = rodtrack_core::PixelFormat::from_name("bayer_rggb8");
+/// let sweep = rodtrack_sdk::auto::open_sweep("sweep/cam1", 1, fmt, Some(2), &cfg)?;
+/// assert_eq!(sweep.every, 2);
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn open_sweep(
     input: &str,
     index: usize,
@@ -166,6 +252,29 @@ fn as_saved<T: serde::Serialize + serde::de::DeserializeOwned>(value: &T) -> Res
 }
 
 /// One camera's automatic calibration.
+///
+/// ```no_run
+/// use rodtrack_sdk::auto::{auto_camera, open_sweep};
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// let sweep = open_sweep("sweep/cam0", 0, None, None, &cfg)?;
+/// let mut cam = auto_camera(0, sweep, &cfg, None, None)?;
+/// for line in cam.summary.iter().chain(&cam.warnings) {
+///     println!("{line}");
+/// }
+/// println!("{} rods calibrated", cam.calibration.rods.len());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub struct AutoCamera {
     /// The calibration inputs derived (to save with [`save_auto_inputs`]).
     pub inputs: CalibrationInputs,
@@ -180,6 +289,28 @@ pub struct AutoCamera {
 }
 
 /// Reads one camera's sweep and calibrates its rods.
+///
+/// ```no_run
+/// use rodtrack_sdk::auto::{auto_camera, open_sweep};
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// let sweep = open_sweep("sweep/cam0", 0, None, None, &cfg)?;
+/// let mut cam = auto_camera(0, sweep, &cfg, None, None)?;
+/// // One camera of a calibration file.
+/// let file = rodtrack_sdk::calibration_file(vec![cam.calibration])?;
+/// rodtrack_sdk::write_calibration("table.toml".as_ref(), &file)?;
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn auto_camera(
     index: usize,
     mut src: SweepInput,
@@ -471,6 +602,27 @@ fn write_frame_png(path: &Path, buf: &FrameBuffer) -> Result<(), SdkError> {
 }
 
 /// Writes a camera's derived calibration inputs and its reference frame beside them.
+///
+/// ```no_run
+/// use rodtrack_sdk::auto::{auto_camera, open_sweep, save_auto_inputs};
+/// use rodtrack_core::MarkerSpec;
+/// use rodtrack_sdk::auto::{print_note, AutoConfig};
+/// let marker_spec = MarkerSpec::default();
+/// let cfg = AutoConfig {
+///     marker: marker_spec.validate().map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?,
+///     marker_spec,
+///     reference_frame: 0,
+///     travel_mm: None,
+///     max_frames: Some(100),
+///     fps: None,
+///     note: print_note,
+/// };
+/// let sweep = open_sweep("sweep/cam0", 0, None, None, &cfg)?;
+/// let mut cam = auto_camera(0, sweep, &cfg, None, None)?;
+/// // cam0.json, and its reference frame in cam0_ref/: what `calibrate --inputs` reads back.
+/// save_auto_inputs("cam0.json".as_ref(), &mut cam)?;
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn save_auto_inputs(path: &Path, cam: &mut AutoCamera) -> Result<(), SdkError> {
     let stem = path
         .file_stem()

@@ -1,5 +1,16 @@
 //! Calibration files and calibration inputs: reading (with warnings for the fields other tools
 //! add), writing, and calibrating cameras from inputs files and their reference frames.
+//!
+//! ```no_run
+//! // `calibrate --inputs`: one calibration-inputs file per camera, then one calibration file.
+//! let cal = rodtrack_sdk::calibrate_files(
+//!     &["rec/cam0.json".as_ref(), "rec/cam1.json".as_ref()],
+//!     &mut rodtrack_sdk::print_warning,
+//! )?;
+//! rodtrack_sdk::write_calibration("table.toml".as_ref(), &cal)?;
+//! assert_eq!(rodtrack_sdk::read_calibration("table.toml".as_ref())?.cameras.len(), 2);
+//! # Ok::<(), rodtrack_sdk::SdkError>(())
+//! ```
 
 use crate::SdkError;
 use rodtrack_core::calib::inputs::OPENCV_MODEL_FILE_KEY;
@@ -13,12 +24,31 @@ use rodtrack_io::FrameBuffer;
 use std::path::Path;
 
 /// The frame rate written into a camera's calibration when its inputs give none.
+///
+/// ```
+/// assert_eq!(rodtrack_sdk::DEFAULT_FPS, 200.0);
+/// ```
 pub const DEFAULT_FPS: f64 = 200.0;
 
 /// Receives the warnings of a read (`FILE: ignoring unknown field 'x'`).
+///
+/// ```
+/// use rodtrack_sdk::calibration::Warn;
+/// let mut seen = Vec::new();
+/// let mut keep = |msg: String| seen.push(msg);
+/// let warn: Warn<'_> = &mut keep;
+/// warn("cam0.json: ignoring unknown field 'note'".into());
+/// assert_eq!(seen.len(), 1);
+/// ```
 pub type Warn<'a> = &'a mut dyn FnMut(String);
 
 /// Prints a warning on standard error, prefixed `warning: `: the warning sink of the CLI.
+///
+/// ```no_run
+/// // Warnings of reading calibration inputs, printed on standard error.
+/// let inputs = rodtrack_sdk::read_inputs("cam0.json".as_ref(), &mut rodtrack_sdk::print_warning)?;
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn print_warning(msg: String) {
     eprintln!("warning: {msg}");
 }
@@ -26,6 +56,13 @@ pub fn print_warning(msg: String) {
 /// Reads and parses a calibration-inputs JSON file. An `opencv_model_file` entry (an OpenCV
 /// FileStorage YAML or JSON file, relative to the inputs file) is read into
 /// `opencv_model_optional`. Fields the inputs do not know are ignored, each with a warning.
+///
+/// ```no_run
+/// let mut warnings = Vec::new();
+/// let inputs = rodtrack_sdk::read_inputs("cam0.json".as_ref(), &mut |w| warnings.push(w))?;
+/// println!("{} rods, {} warnings", inputs.rods.len(), warnings.len());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn read_inputs(path: &Path, warn: Warn<'_>) -> Result<CalibrationInputs, SdkError> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         SdkError::file(
@@ -97,6 +134,20 @@ pub fn read_inputs(path: &Path, warn: Warn<'_>) -> Result<CalibrationInputs, Sdk
 
 /// Deserialises `T`, warning for every field `T` does not know, with `path` and the field
 /// (inputs written by other tools carry extra fields; the specification allows them).
+///
+/// ```
+/// use rodtrack_sdk::calibration::from_json_warning_unknown;
+/// #[derive(serde::Deserialize)]
+/// struct Size {
+///     width: u32,
+/// }
+/// let mut de = serde_json::Deserializer::from_str(r#"{"width": 1440, "colour": "red"}"#);
+/// let mut warnings = Vec::new();
+/// let s: Size = from_json_warning_unknown(&mut de, "size.json".as_ref(), &mut |w| warnings.push(w))?;
+/// assert_eq!(s.width, 1440);
+/// assert_eq!(warnings, ["size.json: ignoring unknown field 'colour'"]);
+/// # Ok::<(), serde_json::Error>(())
+/// ```
 pub fn from_json_warning_unknown<'de, T, D>(
     de: D,
     path: &Path,
@@ -120,6 +171,13 @@ fn unknown_field(path: &Path, field: &str) -> String {
 
 /// Reads an OpenCV camera model from a `cv::FileStorage` file (YAML or JSON, as OpenCV writes
 /// it after `calibrateCamera`); errors name the file and the field.
+///
+/// ```no_run
+/// // The file OpenCV's calibrateCamera wrote (cv::FileStorage, YAML or JSON).
+/// let model = rodtrack_sdk::read_opencv_model("cam0_intrinsics.yml".as_ref())?;
+/// println!("{:?}", model);
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn read_opencv_model(path: &Path) -> Result<OpencvModel, SdkError> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         SdkError::file(
@@ -170,6 +228,12 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationFile, SdkError> {
 }
 
 /// Writes a calibration file (TOML) atomically (a temporary file renamed over `path`).
+///
+/// ```no_run
+/// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+/// rodtrack_sdk::write_calibration("copy.toml".as_ref(), &cal)?;
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn write_calibration(path: &Path, cal: &CalibrationFile) -> Result<(), SdkError> {
     let text = toml::to_string_pretty(cal)
         .map_err(|e| SdkError::file(path, format!("cannot serialise the calibration: {e}")))?;
@@ -186,6 +250,14 @@ pub fn write_calibration(path: &Path, cal: &CalibrationFile) -> Result<(), SdkEr
 
 /// Calibrates camera `index` from its inputs, read from `path`: the reference frames named
 /// by the inputs are read from `reference_frames.dir` (relative to `path`).
+///
+/// ```no_run
+/// let path = std::path::Path::new("rec/cam0.json");
+/// let inputs = rodtrack_sdk::read_inputs(path, &mut rodtrack_sdk::print_warning)?;
+/// let camera = rodtrack_sdk::calibrate_camera_file(&inputs, path, 0)?;
+/// let file = rodtrack_sdk::calibration_file(vec![camera])?;
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn calibrate_camera_file(
     inputs: &CalibrationInputs,
     path: &Path,
@@ -235,6 +307,15 @@ pub fn calibrate_camera_file(
 /// The reference frames of a camera's calibration inputs: the images of
 /// `reference_frames.dir` (relative to the inputs file), in reading order, decoded in the
 /// inputs' pixel format.
+///
+/// ```no_run
+/// use rodtrack_sdk::ReferenceFolder;
+/// let path = std::path::Path::new("rec/cam0.json");
+/// let inputs = rodtrack_sdk::read_inputs(path, &mut rodtrack_sdk::print_warning)?;
+/// let folder = ReferenceFolder::open(&inputs, path)?;
+/// println!("{} frames in {}", folder.files.len(), folder.dir.display());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct ReferenceFolder {
     /// The inputs file, for messages.
@@ -249,6 +330,14 @@ pub struct ReferenceFolder {
 
 impl ReferenceFolder {
     /// The reference folder of `inputs`, read from `path`; errors name the file and the field.
+    ///
+    /// ```no_run
+    /// let path = std::path::Path::new("rec/cam0.json");
+    /// let inputs = rodtrack_sdk::read_inputs(path, &mut rodtrack_sdk::print_warning)?;
+    /// let folder = rodtrack_sdk::ReferenceFolder::open(&inputs, path)?;
+    /// println!("{}", folder.format.name());
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn open(inputs: &CalibrationInputs, path: &Path) -> Result<ReferenceFolder, SdkError> {
         let name = path.display().to_string();
         let format = PixelFormat::from_name(&inputs.pixel_format).ok_or_else(|| {
@@ -277,6 +366,15 @@ impl ReferenceFolder {
 
     /// Frame `idx` of the folder, decoded; `what` (`rod 3: field `known_poses``) names who
     /// asked for it in the error when there is no such frame.
+    ///
+    /// ```no_run
+    /// let path = std::path::Path::new("rec/cam0.json");
+    /// let inputs = rodtrack_sdk::read_inputs(path, &mut rodtrack_sdk::print_warning)?;
+    /// let folder = rodtrack_sdk::ReferenceFolder::open(&inputs, path)?;
+    /// let frame = folder.read(inputs.reference_frames.reference_frame, "the reference frame")?;
+    /// println!("{}x{}", frame.meta.width, frame.meta.height);
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn read(&self, idx: usize, what: &str) -> Result<FrameBuffer, SdkError> {
         let file = self.files.get(idx).ok_or_else(|| SdkError::File {
             path: self.name.clone(),
@@ -315,6 +413,18 @@ pub fn calibrate_files(paths: &[&Path], warn: Warn<'_>) -> Result<CalibrationFil
 }
 
 /// The calibration file of `cameras`, validated.
+///
+/// ```
+/// // Camera 0 of the simulator, calibrated as an operator would.
+/// let mut sim = rodtrack_sim::build_simulation("exp3", Some(1), 1, false, "default").unwrap();
+/// let camera = rodtrack_sim::calibrate_sim_camera(&mut sim, 0, 1).unwrap().calibration;
+/// let file = rodtrack_sdk::calibration_file(vec![camera])?;
+/// assert_eq!(file.cameras.len(), 1);
+/// // Two cameras with the same index do not make a file.
+/// let twice = vec![file.cameras[0].clone(), file.cameras[0].clone()];
+/// assert!(rodtrack_sdk::calibration_file(twice).is_err());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn calibration_file(cameras: Vec<CameraCalibration>) -> Result<CalibrationFile, SdkError> {
     let file = CalibrationFile {
         version: CALIBRATION_VERSION,

@@ -1,10 +1,24 @@
 //! The SDK's error type: every message names the file, field, camera or input concerned.
+//!
+//! ```
+//! let e = rodtrack_sdk::read_calibration("missing.toml".as_ref()).unwrap_err();
+//! assert!(e.to_string().contains("missing.toml"), "{e}");
+//! ```
 
 use rodtrack_core::CoreError;
 use rodtrack_io::{IoError, SourceError};
 use thiserror::Error;
 
 /// What can go wrong while calibrating, opening sources or running a session.
+///
+/// ```
+/// use rodtrack_sdk::SdkError;
+/// let e = rodtrack_sdk::read_calibration("no/such/table.toml".as_ref()).unwrap_err();
+/// assert!(matches!(e, SdkError::File { .. }));
+/// assert!(e.to_string().contains("table.toml"), "{e}");
+/// let e = rodtrack_sdk::mode_from_name("fast").unwrap_err();
+/// assert!(matches!(e, SdkError::Invalid(_)));
+/// ```
 #[derive(Debug, Error)]
 pub enum SdkError {
     /// A file (calibration, calibration inputs, camera model) cannot be read or is wrong.

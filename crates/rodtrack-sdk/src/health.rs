@@ -333,11 +333,29 @@ mod tests {
     fn the_sink_counts_rows_per_camera_and_rod() {
         let mut sink =
             CountingSink::new(rodtrack_io::VecSink::default(), [(CameraId::Camera(0), 1)]);
-        let mut a = Measurement::empty(0, 0.0, CameraId::Camera(0), 1, Status::Ok);
+        let mut a = Measurement::empty(
+            0,
+            rodtrack_core::Timestamp(0),
+            CameraId::Camera(0),
+            1,
+            Status::Ok,
+        );
         a.turns_known = false;
-        let mut b = Measurement::empty(0, 0.0, CameraId::Fused, 1, Status::Conflict);
+        let mut b = Measurement::empty(
+            0,
+            rodtrack_core::Timestamp(0),
+            CameraId::Fused,
+            1,
+            Status::Conflict,
+        );
         b.turns_known = false;
-        let mut c = Measurement::empty(1, 0.0, CameraId::Camera(0), 1, Status::Ok);
+        let mut c = Measurement::empty(
+            1,
+            rodtrack_core::Timestamp(0),
+            CameraId::Camera(0),
+            1,
+            Status::Ok,
+        );
         c.turns_known = true;
         sink.write(&[a, b, c]).unwrap_or_else(|e| panic!("{e}"));
         let rods = merge(&[], &sink);

@@ -1,5 +1,17 @@
 //! What a session tells its user while it runs: frames, measured rows, bad frames, fusion
 //! warnings and progress.
+//!
+//! ```
+//! use rodtrack_sdk::{Hooks, NoHooks, Progress};
+//! struct Bad;
+//! impl Hooks for Bad {
+//!     fn bad_frame(&self, camera: &str, frame_id: u64, error: &str, count: u64) {
+//!         eprintln!("{camera}: frame {frame_id} is bad ({error}), {count} so far");
+//!     }
+//! }
+//! let hooks: [&dyn Hooks; 2] = [&Bad, &NoHooks];
+//! hooks[0].bad_frame("camera 0", 7, "truncated", 1);
+//! ```
 
 use rodtrack_core::{CameraPipeline, Measurement};
 use rodtrack_io::{FrameBuffer, FrameMeta};
@@ -61,6 +73,14 @@ pub trait Hooks: Send + Sync {
 }
 
 /// No hooks.
+///
+/// ```
+/// use rodtrack_sdk::{Hooks, NoHooks};
+/// use std::sync::Arc;
+/// // What a session has until `Session::with_hooks` gives it others.
+/// let hooks: Arc<dyn Hooks> = Arc::new(NoHooks);
+/// assert!(!hooks.uses_frames());
+/// ```
 #[derive(Debug, Default, Clone, Copy)]
 pub struct NoHooks;
 

@@ -24,6 +24,15 @@
 //!   ([`pipeline_config`]).
 //! - On the end of the inputs, an error or [`Session::stop_flag`]: every pending set is
 //!   written and the sink flushed.
+//!
+//! ```no_run
+//! use rodtrack_sdk::{open_sinks, RowFormat, Session, SessionOptions};
+//! let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+//! let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+//! let (report, _) = session.run(open_sinks("rows.csv".as_ref(), RowFormat::Csv, None)?)?;
+//! eprintln!("{}", report.summary());
+//! # Ok::<(), rodtrack_sdk::SdkError>(())
+//! ```
 
 use crate::control::SessionControl;
 use crate::health::{health_lines, CameraHealth, CountingSink, RodHealth};
@@ -44,6 +53,20 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// One camera of a session: its source and its tracker.
+///
+/// ```no_run
+/// use rodtrack_sdk::{source_factory, Session, SessionCamera, SessionOptions};
+/// // A camera opened by hand: any source, any tracker.
+/// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+/// let source = source_factory()
+///     .open("raw:cam0.raw?width=1440&height=1080&format=bayer_rggb8", &Default::default())
+///     .map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?;
+/// let pipe = rodtrack_core::CameraPipeline::new(&cal.cameras[0], rodtrack_core::Mode::Enhanced)
+///     .map_err(|e| rodtrack_sdk::SdkError::Invalid(e.to_string()))?;
+/// let camera = SessionCamera { label: "camera 0 (cam0.raw)".into(), source, pipe };
+/// let session = Session::from_cameras(vec![camera], SessionOptions::default());
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub struct SessionCamera {
     /// `camera 0 (cam0)`, for messages.
     pub label: String,
@@ -116,6 +139,15 @@ impl Session {
     /// Opens one input per camera of `cal`, in its camera order, with
     /// [`crate::source_factory`]: a folder of images, `raw:FILE?...`, `video:FILE`,
     /// `genicam://ID`, `sim://SCENARIO?camera=N...`.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let (report, sink) = session.run(rodtrack_io::VecSink::default())?;
+    /// println!("{} rows{}", sink.rows.len(), report.summary());
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn open<S: AsRef<str>>(
         cal: &CalibrationFile,
         inputs: &[S],
@@ -125,6 +157,15 @@ impl Session {
     }
 
     /// [`Session::open`] with the sources of `factory`.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{source_factory, Session, SessionOptions};
+    /// // The sources of this build plus one's own (registered on the factory before opening).
+    /// let factory = source_factory();
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open_with(&factory, &cal, &["sim://exp3?camera=0"], SessionOptions::default())?;
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn open_with<S: AsRef<str>>(
         factory: &SourceFactory,
         cal: &CalibrationFile,
@@ -165,6 +206,18 @@ impl Session {
     }
 
     /// A session over cameras opened by the caller.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// // The same cameras again, with other options: take them over from a session opened by URI.
+    /// let cameras = Vec::from_iter(std::iter::empty()); // or cameras opened by hand
+    /// let other = Session::from_cameras(cameras, SessionOptions { filter: false, ..Default::default() });
+    /// assert!(other.cameras().is_empty());
+    /// # let _ = session;
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn from_cameras(cameras: Vec<SessionCamera>, options: SessionOptions) -> Session {
         let control = SessionControl::new(
             cameras
@@ -194,12 +247,37 @@ impl Session {
     }
 
     /// The hooks to call while running.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Hooks, Progress, Session, SessionOptions};
+    /// use std::sync::Arc;
+    /// struct Print;
+    /// impl Hooks for Print {
+    ///     fn progress(&self, p: &Progress) {
+    ///         eprintln!("{} frame sets", p.sets);
+    ///     }
+    /// }
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let session = session.with_hooks(Arc::new(Print));
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn with_hooks(mut self, hooks: Arc<dyn Hooks>) -> Session {
         self.hooks = hooks;
         self
     }
 
     /// Uses `stop` as the stop flag (e.g. one set on Ctrl-C).
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// use std::sync::{atomic::AtomicBool, Arc};
+    /// let stop = Arc::new(AtomicBool::new(false)); // shared with a Ctrl-C handler
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let session = session.with_stop_flag(stop.clone());
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn with_stop_flag(mut self, stop: Arc<AtomicBool>) -> Session {
         self.stop = stop;
         self
@@ -207,37 +285,104 @@ impl Session {
 
     /// Setting this flag stops the session: every pending frame set is written, the sink
     /// flushed and [`Session::run`] returns.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// use std::sync::atomic::Ordering;
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let stop = session.stop_flag();
+    /// std::thread::spawn(move || {
+    ///     std::thread::sleep(std::time::Duration::from_secs(10));
+    ///     stop.store(true, Ordering::Relaxed); // ends the run after 10 s
+    /// });
+    /// let (report, _) = session.run(rodtrack_io::VecSink::default())?;
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn stop_flag(&self) -> Arc<AtomicBool> {
         self.stop.clone()
     }
 
     /// The session's options, to change them once the sources are open (e.g. the pipeline
     /// settings chosen from [`Session::is_live`]).
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{pipeline_config, Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let mut session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let live = session.is_live();
+    /// session.options_mut().config = Some(pipeline_config(live));
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn options_mut(&mut self) -> &mut SessionOptions {
         &mut self.options
     }
 
     /// The session's cameras.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// for c in session.cameras() {
+    ///     println!("{}: {:?} frames", c.label, c.source.info().frame_count);
+    /// }
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn cameras(&self) -> &[SessionCamera] {
         &self.cameras
     }
 
     /// True when a source is live (a camera, the real-time simulator).
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// assert!(!session.is_live()); // image folders are recordings
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn is_live(&self) -> bool {
         self.cameras.iter().any(|c| c.source.info().live)
     }
 
     /// Runs the cameras into `sink` until the sources end or the stop flag is set; returns
     /// the report and the sink, flushed.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{open_sinks, RowFormat, Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let sink = open_sinks("rows.csv".as_ref(), RowFormat::Csv, None)?;
+    /// let (report, _sink) = session.run(sink)?;
+    /// if report.all_bad() {
+    ///     eprintln!("no frame could be measured");
+    /// }
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn run<S: MeasurementSink + 'static>(self, sink: S) -> Result<(RunReport, S), SdkError> {
         run_cameras(self, sink)
     }
 }
 
 /// The mode names accepted by [`mode_from_name`]: `enhanced`, `paper`.
+///
+/// ```
+/// for name in rodtrack_sdk::MODE_NAMES {
+///     assert!(rodtrack_sdk::mode_from_name(name).is_ok());
+/// }
+/// ```
 pub const MODE_NAMES: [&str; 2] = ["enhanced", "paper"];
 
 /// The algorithm named `name` ([`MODE_NAMES`]).
+///
+/// ```
+/// use rodtrack_core::Mode;
+/// assert_eq!(rodtrack_sdk::mode_from_name("paper")?, Mode::Paper);
+/// let e = rodtrack_sdk::mode_from_name("fast").unwrap_err();
+/// assert!(e.to_string().contains("fast"), "{e}");
+/// # Ok::<(), rodtrack_sdk::SdkError>(())
+/// ```
 pub fn mode_from_name(name: &str) -> Result<Mode, SdkError> {
     Mode::from_name(name).ok_or_else(|| {
         SdkError::Invalid(format!(
@@ -293,6 +438,15 @@ pub struct RunReport {
 
 impl RunReport {
     /// The report, the run mode and the per-camera tracker times, for printing.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let (report, _) = session.run(rodtrack_io::VecSink::default())?;
+    /// eprintln!("{}", report.summary()); // the mode, then frames read, dropped and bad per camera
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn summary(&self) -> String {
         let mut s = format!(
             "\n{} mode ({}, {}), {}",
@@ -326,6 +480,17 @@ impl RunReport {
     }
 
     /// True when frames were read and every one of them was bad: nothing was measured.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?;
+    /// let (report, _) = session.run(rodtrack_io::VecSink::default())?;
+    /// if report.all_bad() {
+    ///     return Err(rodtrack_sdk::SdkError::Invalid("every frame was bad".into()));
+    /// }
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
     pub fn all_bad(&self) -> bool {
         let c = &self.pipeline.cameras;
         c.iter().any(|c| c.frames_read > 0) && c.iter().all(|c| c.bad_frames >= c.frames_read)
@@ -362,12 +527,22 @@ impl FrameSource for Limit {
 /// machine: the lock wait's p99 falls from up to 40-60 us to under 10 us, the max from
 /// milliseconds to about 0.25 ms); on 1 core the holder cannot run while the other polls, so
 /// there is no polling.
+///
+/// ```
+/// assert!(rodtrack_sdk::LIVE_SPIN < std::time::Duration::from_millis(1));
+/// ```
 pub const LIVE_SPIN: Duration = Duration::from_micros(30);
 
 /// Pipeline settings for recordings (`live` false) or live sources: for live sources the
 /// lowest latency (no hand-off between threads, each camera's rows written as soon as they are
 /// measured, [`LIVE_SPIN`] on the output lock); for recordings one write per frame set (files
 /// identical whatever the timing).
+///
+/// ```
+/// use rodtrack_io::runtime::RunMode;
+/// // Recordings: one write per frame set, as fast as the tracker goes.
+/// assert_eq!(rodtrack_sdk::pipeline_config(false).mode, RunMode::Batch);
+/// ```
 pub fn pipeline_config(live: bool) -> PipelineConfig {
     if live {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -464,7 +639,7 @@ fn run_cameras<S: MeasurementSink + 'static>(
         let index = pipeline.add_camera(
             source,
             Box::new(move |meta, frame, rows| {
-                let ts = meta.timestamp_ns.as_secs_f64();
+                let ts = meta.timestamp_ns;
                 let start = Instant::now();
                 let result = match frame {
                     Ok(view) => pipe

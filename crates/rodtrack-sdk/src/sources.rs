@@ -1,4 +1,11 @@
 //! The frame sources of this build, by URI.
+//!
+//! ```
+//! let source = rodtrack_sdk::source_factory()
+//!     .open("sim://exp3?camera=1&frames=1", &Default::default())
+//!     .unwrap();
+//! assert!(!source.info().live);
+//! ```
 
 use rodtrack_io::SourceFactory;
 

@@ -75,6 +75,6 @@ pub use record::{write_recording, RecordOptions, RecordSummary};
 pub use render::{RenderMode, RenderStats};
 pub use scenario::{BallPath, HandPass, RodMotion, Scenario, SCENARIO_NAMES};
 pub use scene::{Lighting, RodConfig, RodLayout, SceneConfig};
-pub use sim::{CalibOptions, RenderInfo, Simulation, TruthRow};
+pub use sim::{frame_time, CalibOptions, RenderInfo, Simulation, TruthRow};
 pub use source::{register_sim_source, Playback, SimSource};
 pub use variations::{apply_variation, VARIATION_NAMES};

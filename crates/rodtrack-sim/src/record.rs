@@ -113,7 +113,7 @@ pub fn truth_csv_line(r: &TruthRow) -> String {
     format!(
         "{},{:.6},{},{},{:.6},{:.9},{:.9},{:.6},{:.6},{:.3},{},{}",
         m.frame,
-        m.timestamp_s,
+        m.timestamp_s(),
         m.camera,
         m.rod,
         m.position_mm,

@@ -11,7 +11,7 @@ use rodtrack_core::angle::wrap_2pi;
 use rodtrack_core::calib::{
     CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
 };
-use rodtrack_core::{CameraId, Measurement, PixelFormat, Status};
+use rodtrack_core::{CameraId, Measurement, PixelFormat, Status, Timestamp};
 use serde::{Deserialize, Serialize};
 
 /// What [`Simulation::render`] produced.
@@ -19,8 +19,8 @@ use serde::{Deserialize, Serialize};
 pub struct RenderInfo {
     /// Frame id (shared by all cameras of a frame: hardware-synchronised).
     pub frame_id: u64,
-    /// Trigger time, s (shared by all cameras of a frame).
-    pub timestamp_s: f64,
+    /// Trigger time (shared by all cameras of a frame): [`frame_time`].
+    pub timestamp_ns: Timestamp,
     /// Width, px.
     pub width: usize,
     /// Height, px.
@@ -29,6 +29,12 @@ pub struct RenderInfo {
     pub stride: usize,
     /// Pixel format.
     pub format: PixelFormat,
+}
+
+/// The trigger time of frame `frame` at `fps`: `frame / fps` seconds, to the nearest
+/// nanosecond (the world itself is rendered at the exact `f64` time).
+pub fn frame_time(frame: u64, fps: f64) -> Timestamp {
+    Timestamp::from_secs_f64(frame as f64 / fps)
 }
 
 /// One ground-truth row: the SPEC section 6 record plus whether the whole marker is visible.
@@ -244,9 +250,13 @@ impl Simulation {
     pub fn frame_bytes(&self, cam: usize) -> Result<usize, SimError> {
         Ok(self.ctx.camera(cam)?.frame_bytes())
     }
-    /// Trigger time of frame `i`, s.
+    /// Trigger time of frame `i`, s (the physical time the world is rendered at).
     pub fn timestamp_s(&self, frame_index: usize) -> f64 {
         frame_index as f64 / self.ctx.scenario.fps
+    }
+    /// Trigger time of frame `i` as frames and truth carry it: [`frame_time`].
+    pub fn timestamp(&self, frame_index: usize) -> Timestamp {
+        frame_time(frame_index as u64, self.ctx.scenario.fps)
     }
     /// The world state at time `t_s`.
     pub fn state_at(&self, t_s: f64) -> WorldState {
@@ -332,7 +342,7 @@ impl Simulation {
         self.render_state(camera_index, &st, u64::MAX - 1 - rod as u64, out)
             .map(|m| RenderInfo {
                 frame_id: 0,
-                timestamp_s: 0.0,
+                timestamp_ns: Timestamp(0),
                 ..m
             })
     }
@@ -539,7 +549,11 @@ impl Ctx {
         );
         r.scratch_geoms = geoms;
         r.scratch_state = st;
-        Ok(self.meta(cam, frame_index as u64, t0))
+        Ok(self.meta(
+            cam,
+            frame_index as u64,
+            frame_time(frame_index as u64, self.scenario.fps),
+        ))
     }
 
     pub fn render_reference(
@@ -552,7 +566,7 @@ impl Ctx {
         self.render_state(r, cam, &st, u64::MAX, out)
             .map(|m| RenderInfo {
                 frame_id: 0,
-                timestamp_s: 0.0,
+                timestamp_ns: Timestamp(0),
                 ..m
             })
     }
@@ -592,14 +606,14 @@ impl Ctx {
             seed,
             &mut out[..need],
         );
-        Ok(self.meta(cam, frame_id, frame_id as f64 / self.scenario.fps))
+        Ok(self.meta(cam, frame_id, frame_time(frame_id, self.scenario.fps)))
     }
 
-    fn meta(&self, cam: usize, frame_id: u64, t: f64) -> RenderInfo {
+    fn meta(&self, cam: usize, frame_id: u64, t: Timestamp) -> RenderInfo {
         let c = &self.cameras[cam];
         RenderInfo {
             frame_id,
-            timestamp_s: t,
+            timestamp_ns: t,
             width: c.camera.width,
             height: c.camera.height,
             stride: c.camera.width * c.pixel_format.bytes_per_pixel(),
@@ -620,7 +634,7 @@ impl Ctx {
                 TruthRow {
                     m: Measurement {
                         frame: frame_index as u64,
-                        timestamp_s: t0,
+                        timestamp_ns: frame_time(frame_index as u64, self.scenario.fps),
                         camera: CameraId::Camera(cam as u32),
                         rod: i as u32,
                         position_mm: p.position_mm,

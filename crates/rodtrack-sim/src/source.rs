@@ -427,7 +427,7 @@ impl FrameSource for SimSource {
             buf.data[..n].copy_from_slice(&data[..n]);
             crate::RenderInfo {
                 frame_id: index as u64,
-                timestamp_s: self.sim.timestamp_s(index),
+                timestamp_ns: self.sim.timestamp(index),
                 ..*m
             }
         };
@@ -448,7 +448,7 @@ impl FrameSource for SimSource {
         buf.reshape(meta.width, meta.height, meta.stride, meta.format);
         if tick == index {
             buf.meta.frame_id = meta.frame_id;
-            buf.meta.timestamp_ns = Timestamp::from_secs_f64(meta.timestamp_s);
+            buf.meta.timestamp_ns = meta.timestamp_ns;
         } else {
             // A loop's later rounds: the timeline goes on.
             buf.meta.frame_id = tick as u64;

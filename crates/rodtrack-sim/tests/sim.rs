@@ -187,7 +187,7 @@ fn hand_over_marker_makes_it_invisible() {
     for r in &after {
         assert!(r.m.angle_rad >= 0.0 && r.m.angle_rad < std::f64::consts::TAU);
         assert_eq!(r.m.frame, 150);
-        assert!((r.m.timestamp_s - 0.75).abs() < 1e-12);
+        assert!((r.m.timestamp_s() - 0.75).abs() < 1e-12);
     }
 }
 

@@ -108,8 +108,13 @@ fn per_frame_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
         g.bench_function(format!("{name}_{}_rods", cal.rods.len()), |b| {
             b.iter(|| {
                 rows.clear();
-                pipe.process(&views[i % FRAMES], i as u64, 0.0, &mut rows)
-                    .unwrap();
+                pipe.process(
+                    &views[i % FRAMES],
+                    i as u64,
+                    rodtrack_core::Timestamp(0),
+                    &mut rows,
+                )
+                .unwrap();
                 i += 1;
                 std::hint::black_box(&rows);
             })

@@ -72,7 +72,12 @@ fn time_mode(
             rows.clear();
             let cpu = cpu_time::ThreadTime::now();
             let t = Instant::now();
-            pipe.process(v, i as u64, i as f64 / cal.fps, &mut rows)?;
+            pipe.process(
+                v,
+                i as u64,
+                rodtrack_core::Timestamp::from_secs_f64(i as f64 / cal.fps),
+                &mut rows,
+            )?;
             let us = t.elapsed().as_secs_f64() * 1e6;
             let cpu_us = cpu.elapsed().as_secs_f64() * 1e6;
             std::hint::black_box(&rows);

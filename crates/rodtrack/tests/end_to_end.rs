@@ -65,8 +65,7 @@ fn run_every(
             for tr in &mut trackers {
                 let r = tr.process(&view).unwrap();
                 let t = truth.iter().find(|t| t.m.rod == tr.rod()).unwrap();
-                let d = (r.angle_rad - t.m.angle_rad).rem_euclid(TAU);
-                let d = if d > TAU / 2.0 { d - TAU } else { d };
+                let d = rodtrack_core::angle::wrap_pi_fold(r.angle_rad - t.m.angle_rad);
                 let dp = r.position_mm - t.m.position_mm;
                 if !t.visible {
                     if r.status == Status::Ok && (d.abs() > 0.2 || dp.abs() > 5.0) {

@@ -396,7 +396,13 @@ fn sample_rows() -> Vec<Measurement> {
         .into_iter()
         .enumerate()
     {
-        let mut m = Measurement::empty(12, 0.06, cam, i as u32, Status::Ok);
+        let mut m = Measurement::empty(
+            12,
+            rodtrack_core::Timestamp::from_secs_f64(0.06),
+            cam,
+            i as u32,
+            Status::Ok,
+        );
         m.position_mm = -12.5 + i as f64;
         m.angle_rad = 1.5;
         m.angle_unwrapped_rad = 7.8;

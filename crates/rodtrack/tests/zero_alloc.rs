@@ -117,8 +117,13 @@ fn per_frame_processing_allocates_nothing() {
             for (pipe, cam) in pipes.iter_mut().zip(&cams) {
                 let (w, h, stride, fmt) = cam.geometry;
                 let view = FrameView::new(&cam.frames[f], w, h, stride, fmt).unwrap();
-                pipe.process(&view, f as u64, f as f64 / 200.0, &mut raw)
-                    .unwrap();
+                pipe.process(
+                    &view,
+                    f as u64,
+                    rodtrack_core::Timestamp::from_frame(f as u64, 200.0),
+                    &mut raw,
+                )
+                .unwrap();
             }
             filter.process(&raw, &mut filtered);
             ok_rows += raw

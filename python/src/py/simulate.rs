@@ -5,7 +5,6 @@ use super::errors::RodtrackError;
 use crate::columns::{Columns, PyRows};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
-use rodtrack_io::Timestamp;
 use rodtrack_sim::SimError;
 
 /// A simulated recording: the frames of every camera, the ground truth and the calibration an
@@ -119,7 +118,7 @@ fn render(
             (width, height) = (info.width, info.height);
             if c == 0 {
                 frame_ids.push(info.frame_id);
-                timestamps_ns.push(Timestamp::from_secs_f64(info.timestamp_s).as_nanos());
+                timestamps_ns.push(info.timestamp_ns.as_nanos());
             }
             for t in sim.truth(f, c)? {
                 truth.push(&t.m);

@@ -80,8 +80,7 @@ impl PyTracker {
         let view = borrowed.view()?;
         let ts = timestamp_ns
             .map(Timestamp::from_nanos)
-            .unwrap_or_else(|| Timestamp::from_frame(frame_id, self.fps))
-            .as_secs_f64();
+            .unwrap_or_else(|| Timestamp::from_frame(frame_id, self.fps));
         let PyTracker {
             pipe,
             filter,

@@ -442,7 +442,14 @@ impl Demo {
                 let m = metas[c];
                 let view = FrameView::new(&bufs[c], m.width, m.height, m.stride, m.format).unwrap();
                 let t0 = Instant::now();
-                pipes[c].process(&view, k as u64, ts, &mut rows).unwrap();
+                pipes[c]
+                    .process(
+                        &view,
+                        k as u64,
+                        rodtrack_core::Timestamp::from_secs_f64(ts),
+                        &mut rows,
+                    )
+                    .unwrap();
                 let dt = t0.elapsed().as_secs_f64();
                 track_s += dt;
                 frame_track += dt;

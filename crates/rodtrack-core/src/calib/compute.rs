@@ -10,7 +10,7 @@ use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
 use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
-use crate::angle::{wrap_2pi, wrap_pi};
+use crate::angle::{wrap_2pi, wrap_pi, wrap_step_diff, wrap_steps};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
@@ -408,8 +408,10 @@ pub fn calibrate_rod_with(
                 cal.enhanced.phase_sign = s;
                 let mut t = RodTracker::new(&cal, frame.width(), frame.height(), Mode::Enhanced)?;
                 let r = t.process(frame)?;
-                let d =
-                    (r.theta_steps - (r.gray_step as f64 + 0.5)).rem_euclid(marker.steps() as f64);
+                let d = wrap_steps(
+                    r.theta_steps - (r.gray_step as f64 + 0.5),
+                    marker.steps() as f64,
+                );
                 let d = d.min(marker.steps() as f64 - d);
                 if d < best.0 {
                     best = (d, s);
@@ -436,7 +438,10 @@ pub fn calibrate_rod_with(
     cal.enhanced.angle_offset_rad =
         wrap_2pi(r.theta_steps * TAU / marker.steps() as f64 - inputs.reference.angle_rad);
     let code_phase = {
-        let d = (r.theta_steps - (r.gray_step as f64 + 0.5)).rem_euclid(marker.steps() as f64);
+        let d = wrap_steps(
+            r.theta_steps - (r.gray_step as f64 + 0.5),
+            marker.steps() as f64,
+        );
         d.min(marker.steps() as f64 - d)
     };
     if code_phase > 1.0 {
@@ -578,11 +583,7 @@ fn print_direction(frame: &FrameView, knots: &Knots, marker: &Marker, s_ref: f64
     let steps = marker.steps() as i64;
     let mut vote = 0i64;
     for w in codes.windows(2) {
-        let mut d = (w[1] - w[0]).rem_euclid(steps);
-        if d > steps / 2 {
-            d -= steps;
-        }
-        vote += d;
+        vote += wrap_step_diff(w[1] - w[0], steps);
     }
     match vote.signum() {
         0 => None,
@@ -736,7 +737,7 @@ fn paper_params(
     probe.paper = Some(p.clone());
     let mut tr = RodTracker::new(&probe, frame.width(), frame.height(), Mode::Paper)?;
     let r0 = tr.process(frame)?;
-    let frac0 = r0.theta_steps.rem_euclid(4.0);
+    let frac0 = wrap_steps(r0.theta_steps, 4.0);
     p.phase_offset_rad = TAU * (frac0 - ((r0.gray_step % 4) as f64 + 0.5)) / 4.0;
     probe.paper = Some(p.clone());
     let mut tr = RodTracker::new(&probe, frame.width(), frame.height(), Mode::Paper)?;

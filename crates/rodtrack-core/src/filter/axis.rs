@@ -1,5 +1,7 @@
 //! One constant-acceleration Kalman axis (value, rate, acceleration) and a track of two.
 
+use crate::time::Timestamp;
+
 /// One constant-acceleration Kalman axis: value, rate, acceleration and their covariance.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(super) struct Axis {
@@ -82,6 +84,6 @@ impl Axis {
 pub(super) struct Track {
     pub(super) pos: Axis,
     pub(super) ang: Axis,
-    pub(super) t: f64,
+    pub(super) t: Timestamp,
     pub(super) quality: f64,
 }

@@ -91,6 +91,7 @@ mod turns;
 pub use crate::angle::wrap_pi;
 use crate::angle::{unwrap_near, wrap_2pi};
 use crate::measurement::{Measurement, Status};
+use crate::time::Timestamp;
 use axis::{Axis, Track};
 pub use bank::FilterBank;
 pub use config::{FilterConfig, Rejection};
@@ -111,7 +112,7 @@ struct Candidate {
 /// The measurement as the filter uses it.
 #[derive(Debug, Clone, Copy)]
 struct Obs {
-    t: f64,
+    t: Timestamp,
     position_mm: f64,
     angle_rad: f64,
     r_pos: f64,
@@ -139,7 +140,7 @@ pub struct RodFilter {
     candidate: Option<Candidate>,
     /// The last known unwrapped angle, kept through `lost` to continue the turn count.
     turn_ref: Option<f64>,
-    last_t: Option<f64>,
+    last_t: Option<Timestamp>,
     rejection: Option<Rejection>,
     /// Whether the turn count is known, and its counters.
     turns: TurnCount,
@@ -196,7 +197,7 @@ impl RodFilter {
         let sp = self.cfg.position_noise_mm / q;
         let sa = self.cfg.angle_noise_rad / q;
         Obs {
-            t: m.timestamp_s,
+            t: m.timestamp_ns,
             position_mm: m.position_mm,
             angle_rad: m.angle_rad,
             r_pos: sp * sp,
@@ -205,7 +206,7 @@ impl RodFilter {
         }
     }
 
-    fn predict(&self, tr: &Track, t: f64) -> Track {
+    fn predict(&self, tr: &Track, t: Timestamp) -> Track {
         let c = &self.cfg;
         self.predict_with(
             tr,
@@ -217,8 +218,8 @@ impl RodFilter {
 
     /// [`RodFilter::predict`] with the given process noise variances (0: the state's own
     /// uncertainty only).
-    fn predict_with(&self, tr: &Track, t: f64, q_pos: f64, q_ang: f64) -> Track {
-        let dt = (t - tr.t).max(0.0);
+    fn predict_with(&self, tr: &Track, t: Timestamp, q_pos: f64, q_ang: f64) -> Track {
+        let dt = t.seconds_since(tr.t).max(0.0);
         let h = self.cfg.accel_horizon_s;
         Track {
             pos: tr.pos.predict(dt, q_pos, h),
@@ -231,7 +232,7 @@ impl RodFilter {
     /// Predicts `tr` to the observation's time and checks both gates.
     fn gate(&self, tr: &Track, o: &Obs) -> Gated {
         let pred = self.predict(tr, o.t);
-        let tau = o.t - tr.t;
+        let tau = o.t.seconds_since(tr.t);
         let half_tau2 = 0.5 * tau * tau;
         let c = &self.cfg;
         let nu_pos = o.position_mm - pred.pos.x();
@@ -283,17 +284,17 @@ impl RodFilter {
             return Err(Rejection::LowQuality(m.quality));
         }
         let tr = match (&self.main, self.last_t) {
-            (Some(tr), Some(last)) if m.timestamp_s >= last => tr,
+            (Some(tr), Some(last)) if m.timestamp_ns >= last => tr,
             (Some(_), Some(last)) => {
                 return Err(Rejection::Timestamp {
-                    previous_s: last,
-                    got_s: m.timestamp_s,
+                    previous_s: last.as_secs_f64(),
+                    got_s: m.timestamp_s(),
                 })
             }
             _ => return Err(Rejection::Unconfirmed),
         };
         let o = self.obs(&m);
-        if o.t - tr.t > self.cfg.max_coast_s {
+        if o.t.seconds_since(tr.t) > self.cfg.max_coast_s {
             return Err(Rejection::Unconfirmed);
         }
         self.gate(tr, &o).result
@@ -313,13 +314,13 @@ impl RodFilter {
     pub fn update_corroborated(&mut self, m: &Measurement, corroborated: bool) -> Measurement {
         let m = m.sanitized();
         self.rejection = None;
-        let t = m.timestamp_s;
+        let t = m.timestamp_ns;
         if let Some(last) = self.last_t {
             if t <= last {
                 // Out of order or repeated: change nothing, report the state at the last time.
                 self.rejection = Some(Rejection::Timestamp {
-                    previous_s: last,
-                    got_s: t,
+                    previous_s: last.as_secs_f64(),
+                    got_s: t.as_secs_f64(),
                 });
                 return self.coast_row(&m, last);
             }
@@ -328,7 +329,7 @@ impl RodFilter {
 
         // Too long without an accepted measurement: lost.
         if let Some(tr) = self.main {
-            if t - tr.t > self.cfg.max_coast_s {
+            if t.seconds_since(tr.t) > self.cfg.max_coast_s {
                 self.turn_ref = Some(tr.ang.x());
                 self.main = None;
                 self.provisional = false;
@@ -336,7 +337,7 @@ impl RodFilter {
             }
         }
         if let Some(c) = self.candidate {
-            if t - c.track.t > self.cfg.max_coast_s {
+            if t.seconds_since(c.track.t) > self.cfg.max_coast_s {
                 self.candidate = None;
             }
         }
@@ -422,7 +423,7 @@ impl RodFilter {
         // The main track's own uncertainty plus the physical bound: the process noise is what
         // the bound replaces, with a hard limit.
         let p = self.predict_with(tr, cand.t, 0.0, 0.0);
-        let tau = cand.t - tr.t;
+        let tau = cand.t.seconds_since(tr.t);
         let half_tau2 = 0.5 * tau * tau;
         let c = &self.cfg;
         let d_pos = (cand.pos.x() - p.pos.x()).abs();
@@ -484,7 +485,7 @@ impl RodFilter {
         if cand.points == 1 {
             // Two-point start: the rod moves; the velocity is the step over the frame gap.
             let dt = if o.t > cand.track.t {
-                o.t - cand.track.t
+                o.t.seconds_since(cand.track.t)
             } else {
                 c.nominal_dt_s
             };
@@ -541,7 +542,7 @@ impl RodFilter {
     ) -> Measurement {
         Measurement {
             frame: m.frame,
-            timestamp_s: m.timestamp_s,
+            timestamp_ns: m.timestamp_ns,
             camera: m.camera,
             rod: m.rod,
             position_mm: tr.pos.x(),
@@ -558,10 +559,10 @@ impl RodFilter {
 
     /// The row when no measurement was accepted at time `t`: the prediction, the candidate's
     /// estimate, or `lost`.
-    fn coast_row(&self, m: &Measurement, t: f64) -> Measurement {
+    fn coast_row(&self, m: &Measurement, t: Timestamp) -> Measurement {
         if let Some(tr) = &self.main {
             let p = self.predict(tr, t.max(tr.t));
-            let fade = (1.0 - (t - tr.t) / self.cfg.max_coast_s).clamp(0.0, 1.0);
+            let fade = (1.0 - t.seconds_since(tr.t) / self.cfg.max_coast_s).clamp(0.0, 1.0);
             let known = self.turns.known && !self.contradicted && self.carried_exactly(tr, t);
             return self.row(m, &p, Status::Predicted, tr.quality * fade, known);
         }
@@ -571,6 +572,6 @@ impl RodFilter {
             let known = !self.turns.anchored && !c.ambiguous && self.turns.pending_turns.is_none();
             return self.row(m, &p, Status::Predicted, 0.25 * c.track.quality, known);
         }
-        Measurement::empty(m.frame, m.timestamp_s, m.camera, m.rod, Status::Lost)
+        Measurement::empty(m.frame, m.timestamp_ns, m.camera, m.rod, Status::Lost)
     }
 }

@@ -5,6 +5,7 @@
 use super::axis::Track;
 use super::{Candidate, RodFilter};
 use crate::angle::wrap_2pi;
+use crate::time::Timestamp;
 use std::f64::consts::{PI, TAU};
 
 /// The turn count's state of one rod's filter.
@@ -46,15 +47,15 @@ impl RodFilter {
     /// The half-width of the angles the rod may have reached at time `t` since `tr` (its
     /// state's uncertainty plus the physical acceleration bound), rad: the count carried
     /// across the gap is exact only while this stays below half a turn.
-    fn angle_spread(&self, tr: &Track, t: f64) -> f64 {
+    fn angle_spread(&self, tr: &Track, t: Timestamp) -> f64 {
         let p = self.predict_with(tr, t, 0.0, 0.0);
-        let tau = (t - tr.t).max(0.0);
+        let tau = t.seconds_since(tr.t).max(0.0);
         self.cfg.gate_sigma * p.ang.var().max(0.0).sqrt()
             + 0.5 * self.cfg.max_angular_accel_rad_s2 * tau * tau
     }
 
     /// Whether the count carried from `tr` to time `t` is exact.
-    pub(super) fn carried_exactly(&self, tr: &Track, t: f64) -> bool {
+    pub(super) fn carried_exactly(&self, tr: &Track, t: Timestamp) -> bool {
         self.angle_spread(tr, t) < PI
     }
 
@@ -74,14 +75,14 @@ impl RodFilter {
     }
 
     /// The confirmed track `prev` took a measurement at time `t`.
-    pub(super) fn turns_on_update(&mut self, prev: &Track, t: f64) {
+    pub(super) fn turns_on_update(&mut self, prev: &Track, t: Timestamp) {
         if self.turns.known {
             if !self.carried_exactly(prev, t) {
                 self.turns_lost();
             }
             return;
         }
-        if self.step_unambiguous(t - prev.t) {
+        if self.step_unambiguous(t.seconds_since(prev.t)) {
             self.turns.steady += 1;
             if self.turns.steady >= self.cfg.reanchor_frames {
                 self.turns.known = true;
@@ -126,7 +127,7 @@ impl RodFilter {
     /// within the physical acceleration bound.
     fn velocity_continues(&self, old: &Track, new: &Track) -> bool {
         let p = self.predict_with(old, new.t, 0.0, 0.0);
-        let tau = (new.t - old.t).max(0.0);
+        let tau = new.t.seconds_since(old.t).max(0.0);
         let dv = (new.ang.v() - p.ang.v()).abs();
         dv <= self.cfg.gate_sigma * (p.ang.p[1][1] + new.ang.p[1][1]).max(0.0).sqrt()
             + self.cfg.max_angular_accel_rad_s2 * tau

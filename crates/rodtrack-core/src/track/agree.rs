@@ -16,6 +16,7 @@
 use super::judge::fused_steps;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
 use super::tuning::{CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, CODE_CHECK_SLOW_STEPS};
+use crate::angle::{step_index, wrap_steps_centred};
 use crate::calib::RodCalibration;
 use crate::frame::FrameView;
 use crate::marker::{gray, Marker};
@@ -58,7 +59,7 @@ impl EnhancedState {
         // which only an acceleration beyond any rod's would hide): nothing to check.
         let steps_f = m.steps() as f64;
         if let Some(prev) = self.last_ok_theta {
-            let d = (theta - prev + 0.5 * steps_f).rem_euclid(steps_f) - 0.5 * steps_f;
+            let d = wrap_steps_centred(theta - prev, steps_f);
             if d.abs() < CODE_CHECK_SLOW_STEPS && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS {
                 return CodeCheck {
                     frac4,
@@ -77,7 +78,7 @@ impl EnhancedState {
         let to_steps = sign * steps_f / TAU;
         let min_span = 0.2 * (inter.loc.white - inter.loc.black);
         let surface = &self.eps_angles[self.eps_best];
-        let ink = |k: u32, x: f64| (gray(x.rem_euclid(steps_f) as u32 % steps) >> k) & 1 == 1;
+        let ink = |k: u32, x: f64| (gray(step_index(x, steps)) >> k) & 1 == 1;
         // Every reading of the high bits that keeps the phase's place in its group: the
         // decoded one (group shift 0) and the others, each shifted by whole groups of 4 steps.
         // Over all bit spaces, the share of checked samples each disagrees with.
@@ -169,7 +170,7 @@ impl EnhancedState {
 pub fn min_wrong_share(bits: u32, angles_rad: &[f64], edge_steps: f64) -> f64 {
     let steps = 1u32 << bits;
     let steps_f = steps as f64;
-    let ink = |k: u32, x: f64| (gray(x.rem_euclid(steps_f) as u32 % steps) >> k) & 1 == 1;
+    let ink = |k: u32, x: f64| (gray(step_index(x, steps)) >> k) & 1 == 1;
     let mut least = 1.0f64;
     for a in 0..(steps * 16) {
         let theta = a as f64 / 16.0;

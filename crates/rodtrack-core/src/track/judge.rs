@@ -5,7 +5,7 @@ use super::quality::{quality, QualityInputs};
 use super::result::RodResult;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
 use super::tuning::{CODE_CHECK_SLOW_STEPS, MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
-use crate::angle::wrap_2pi;
+use crate::angle::{wrap_2pi, wrap_step, wrap_steps, wrap_steps_centred};
 use crate::calib::RodCalibration;
 use crate::marker::Marker;
 use crate::measurement::Status;
@@ -33,7 +33,7 @@ impl EnhancedState {
         let angle = wrap_2pi(theta * TAU / steps as f64 - calib.enhanced.angle_offset_rad);
         // 6. Consistency and status.
         let code_dist = {
-            let d = (theta - (alpha as f64 + 0.5)).rem_euclid(steps as f64);
+            let d = wrap_steps(theta - (alpha as f64 + 0.5), steps as f64);
             d.min(steps as f64 - d)
         };
         let near_group_edge = !(0.75..=3.25).contains(&frac4);
@@ -121,7 +121,7 @@ impl EnhancedState {
             self.last_k = Some(k);
             let s = steps as f64;
             self.last_dtheta = match self.last_ok_theta {
-                Some(p) => (theta - p + 0.5 * s).rem_euclid(s) - 0.5 * s,
+                Some(p) => wrap_steps_centred(theta - p, s),
                 None => s,
             };
             self.last_ok_theta = Some(theta);
@@ -159,9 +159,10 @@ pub(super) fn fused_steps(
     ph: &PhaseFit,
 ) -> (f64, f64) {
     let sigma = calib.enhanced.phase_sign as f64;
-    let frac4 = (4.0 * ((-sigma * ph.phi) / TAU).rem_euclid(1.0)
-        + calib.enhanced.phase_offset_steps)
-        .rem_euclid(4.0);
+    let frac4 = wrap_steps(
+        4.0 * wrap_steps((-sigma * ph.phi) / TAU, 1.0) + calib.enhanced.phase_offset_steps,
+        4.0,
+    );
     (frac4, fuse_steps(frac4, gray.alpha, m.steps()))
 }
 
@@ -169,8 +170,8 @@ pub(super) fn fused_steps(
 /// to `theta` (in steps, `[0, steps)`): the one bit in which the codes of the steps either
 /// side of that edge differ.
 fn group_edge_bit(theta: f64, steps: u32) -> u32 {
-    let group = ((theta / 4.0).round() as u32 * 4) % steps;
-    let before = (group + steps - 1) % steps;
+    let group = wrap_step(i64::from((theta / 4.0).round() as u32 * 4), steps);
+    let before = wrap_step(i64::from(group) - 1, steps);
     (group ^ (group >> 1)) ^ (before ^ (before >> 1))
 }
 
@@ -180,7 +181,7 @@ pub fn fuse_steps(frac4: f64, alpha: u32, steps: u32) -> f64 {
     let alpha_p = (alpha & !3) as f64;
     let d = frac4 + alpha_p - alpha as f64;
     let j = (-d / 4.0).round();
-    (frac4 + alpha_p + 4.0 * j).rem_euclid(steps as f64)
+    wrap_steps(frac4 + alpha_p + 4.0 * j, steps as f64)
 }
 
 #[cfg(test)]

@@ -53,7 +53,7 @@
 //!     pipeline.add_camera(source, Box::new(|meta, frame, rows| {
 //!         // The tracker goes here; a bad frame arrives as Err and can be reported as such.
 //!         let status = if frame.is_ok() { Status::NotFound } else { Status::BadFrame };
-//!         let t = meta.timestamp_ns.as_secs_f64();
+//!         let t = meta.timestamp_ns;
 //!         rows.push(Measurement::empty(meta.frame_id, t, CameraId::Camera(meta.camera), 0, status));
 //!     }));
 //! }

@@ -25,7 +25,7 @@ fn fusion() -> FusionFn {
     Box::new(|set, rows, out| {
         let mut m = Measurement::empty(
             set.frame_id,
-            set.timestamp_ns.as_secs_f64(),
+            set.timestamp_ns,
             CameraId::Fused,
             0,
             Status::Ok,

@@ -11,6 +11,7 @@
 use super::{parse_camera, push_csv_row, MeasurementSink};
 use crate::IoError;
 use rodtrack_core::measurement::{CSV_COLUMNS, OUTPUT_COLUMNS, TURNS_KNOWN_COLUMN};
+use rodtrack_core::time::{Timestamp, MAX_TIMESTAMP_S};
 use rodtrack_core::{Measurement, Status};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -203,6 +204,21 @@ pub fn parse_measurements_csv(
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| err(ln, CSV_COLUMNS[k], format!("`{s}` is not a finite number")))
         };
+        let time = |k: usize| -> Result<Timestamp, IoError> {
+            let s = f[idx[k]];
+            s.parse::<f64>()
+                .ok()
+                .and_then(Timestamp::try_from_secs_f64)
+                .ok_or_else(|| {
+                    err(
+                        ln,
+                        CSV_COLUMNS[k],
+                        format!(
+                            "`{s}` is not a time in seconds (finite, 0 to {MAX_TIMESTAMP_S:e})"
+                        ),
+                    )
+                })
+        };
         let frame = f[idx[0]].parse::<u64>().map_err(|_| {
             err(
                 ln,
@@ -229,7 +245,7 @@ pub fn parse_measurements_csv(
         })?;
         let m = Measurement {
             frame,
-            timestamp_s: num(1)?,
+            timestamp_ns: time(1)?,
             camera,
             rod,
             position_mm: num(4)?,

@@ -10,6 +10,7 @@ use super::csv::TextOut;
 use super::{fields, parse_camera, MeasurementSink};
 use crate::IoError;
 use rodtrack_core::measurement::OUTPUT_COLUMNS;
+use rodtrack_core::time::{Timestamp, MAX_TIMESTAMP_S};
 use rodtrack_core::{Measurement, Status};
 use std::fs::File;
 use std::io::Write;
@@ -112,6 +113,17 @@ pub fn parse_measurement_json(
             .filter(|x| x.is_finite())
             .ok_or_else(|| err(k, "not a finite number".into()))
     };
+    let time = |k: &str| -> Result<Timestamp, IoError> {
+        get(k)?
+            .as_f64()
+            .and_then(Timestamp::try_from_secs_f64)
+            .ok_or_else(|| {
+                err(
+                    k,
+                    format!("not a time in seconds (finite, 0 to {MAX_TIMESTAMP_S:e})"),
+                )
+            })
+    };
     let uint = |k: &str| -> Result<u64, IoError> {
         get(k)?
             .as_u64()
@@ -144,7 +156,7 @@ pub fn parse_measurement_json(
     Ok((
         Measurement {
             frame: uint("frame")?,
-            timestamp_s: num("timestamp_s")?,
+            timestamp_ns: time("timestamp_s")?,
             camera,
             rod,
             position_mm: num("position_mm")?,

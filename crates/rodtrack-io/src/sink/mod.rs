@@ -217,7 +217,7 @@ pub(crate) fn push_csv_row(out: &mut String, m: &Measurement) {
     use decimals::*;
     let m = m.sanitized();
     let _ = write!(out, "{},", m.frame);
-    push_fixed(out, m.timestamp_s, TIMESTAMP_S);
+    push_fixed(out, m.timestamp_s(), TIMESTAMP_S);
     let _ = write!(out, ",{},{},", m.camera, m.rod);
     for (v, decimals) in [
         (m.position_mm, POSITION_MM),
@@ -244,7 +244,7 @@ pub(crate) fn fields(m: &Measurement, out: &mut [String; 12]) {
         s.clear();
     }
     let _ = write!(out[0], "{}", m.frame);
-    push_fixed(&mut out[1], m.timestamp_s, TIMESTAMP_S);
+    push_fixed(&mut out[1], m.timestamp_s(), TIMESTAMP_S);
     let _ = write!(out[2], "{}", m.camera);
     let _ = write!(out[3], "{}", m.rod);
     push_fixed(&mut out[4], m.position_mm, POSITION_MM);
@@ -388,7 +388,7 @@ mod tests {
         {
             let mut m = Measurement::empty(
                 1234 + k as u64,
-                6.17 + k as f64,
+                rodtrack_core::Timestamp::from_secs_f64(6.17 + k as f64),
                 if k == 1 {
                     CameraId::Fused
                 } else {

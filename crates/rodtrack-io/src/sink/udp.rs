@@ -110,10 +110,7 @@ pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> R
         .first()
         .map(|r| {
             let r = r.sanitized();
-            (
-                r.frame,
-                crate::Timestamp::from_secs_f64(r.timestamp_s).as_nanos(),
-            )
+            (r.frame, r.timestamp_ns.as_nanos())
         })
         .unwrap_or((0, 0));
     out.extend_from_slice(&UDP_MAGIC);
@@ -195,7 +192,7 @@ pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
             .ok_or_else(|| IoError::Packet(format!("row {i}: unknown status code {}", r[52])))?;
         rows.push(Measurement {
             frame,
-            timestamp_s: timestamp_ns as f64 * 1e-9,
+            timestamp_ns: crate::Timestamp(timestamp_ns),
             camera: if cam == UDP_CAMERA_FUSED {
                 CameraId::Fused
             } else {

@@ -10,7 +10,7 @@ pub const MAX_SIDECAR_BYTES: u64 = 64 << 20;
 
 /// The latest capture time accepted, seconds (about the year 2286 on a Unix-epoch clock; a
 /// nanosecond counter in a `u64` ends at 1.8e10 s).
-pub const MAX_TIMESTAMP_S: f64 = 1e10;
+pub use rodtrack_core::time::MAX_TIMESTAMP_S;
 
 /// Reads a whole file of at most `max` bytes; refuses a path that is not a regular file
 /// (without opening it) and a longer file (without reading it).

@@ -82,7 +82,7 @@ impl FrameSource for Fake {
 pub fn tracker(work: Duration) -> ProcessFn {
     Box::new(move |meta, view, out| {
         std::thread::sleep(work);
-        let ts = meta.timestamp_ns.as_secs_f64();
+        let ts = meta.timestamp_ns;
         let cam = CameraId::Camera(meta.camera);
         match view {
             Ok(v) => {

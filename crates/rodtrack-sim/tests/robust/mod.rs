@@ -152,7 +152,7 @@ pub fn run(
                 FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
             raw.clear();
             filtered.clear();
-            pipe.process(&view, meta.frame_id, meta.timestamp_s, &mut raw)
+            pipe.process(&view, meta.frame_id, meta.timestamp_ns, &mut raw)
                 .unwrap();
             filter.process(&raw, &mut filtered);
             let truth = sim.truth(f, c).unwrap();
