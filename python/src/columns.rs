@@ -1,6 +1,6 @@
 //! The record's fields as columns: the ONE place that reads [`Measurement`]'s fields.
 //!
-//! Every field the binding exposes is one line of the [`columns!`] table below: its name, its
+//! Every field the binding exposes is one line of the `columns!` table below: its name, its
 //! element type and how it is read from a record. The table makes [`Columns`] (plain vectors,
 //! no Python), [`COLUMN_NAMES`] and, with the `python` feature, the `Rows` class whose
 //! attributes are numpy arrays (`rows.position_mm`, ...). A field added to the record is one

@@ -29,10 +29,11 @@
 //!
 //! [`Fuser::process`] then passes each fused row through the rod's [`RodFilter`] of a
 //! [`FilterBank`]; a row fused from two or more agreeing cameras is corroborated, so that on
-//! the run's first frame it is `ok` at once ([`RodFilter::update_corroborated`]). Nothing is allocated per trigger once the scratch buffers have grown to the
-//! number of rows.
+//! the run's first frame it is `ok` at once ([`RodFilter::update_corroborated`]). Nothing is
+//! allocated per trigger once the scratch buffers have grown to the number of rows.
 //!
 //! [`RodFilter`]: crate::filter::RodFilter
+//! [`RodFilter::update_corroborated`]: crate::filter::RodFilter::update_corroborated
 
 use crate::angle::{wrap_2pi, wrap_pi};
 use crate::filter::FilterBank;

@@ -4,7 +4,8 @@
 //! raw tracker rows (no filter, no fusion) held against the truth and grouped by quality.
 //!
 //! [`run_table`] gives the rows of one table; [`bands`] the error percentiles per quality
-//! band; [`format_bands`] the table the README quotes. The `quality_bands` example runs it.
+//! band; [`format_bands`] the table `docs/quality.md` quotes. The `quality_bands` example runs
+//! it.
 
 use crate::Result;
 use rodtrack_core::angle::wrap_pi;

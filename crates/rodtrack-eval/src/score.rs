@@ -74,7 +74,8 @@ impl Stats {
     }
 }
 
-/// Signed angle difference wrapped to (-pi, pi]: the core's [`wrap_pi_fold`].
+/// Signed angle difference wrapped to (-pi, pi]: the core's
+/// [`wrap_pi_fold`](rodtrack_core::angle::wrap_pi_fold).
 pub use rodtrack_core::angle::wrap_pi_fold as wrap_angle;
 
 /// Reads a measurement file by extension.

@@ -7,7 +7,7 @@
 //!   larger than that of the rows below, and band by band wherever bands hold enough rows.
 //!
 //! `cargo run --release -p rodtrack-eval --example quality_bands` prints the whole relation
-//! over more tables and scenes (the README's table).
+//! over more tables and scenes (the table in `docs/quality.md`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use rodtrack_eval::quality::{bands, calibrate_table, format_bands, run_scene, Scene, ScoredRow};

@@ -4,8 +4,8 @@
 //!
 //! Collected without a lock or an allocation per frame: the tracker's and the filter's
 //! counters are copied into preallocated atomics by the camera's own thread after each frame
-//! ([`CameraHealth`]), the rows are counted by the writing thread as they go to the sink
-//! ([`CountingSink`]), and the report merges both once the run ends.
+//! (`CameraHealth`), the rows are counted by the writing thread as they go to the sink
+//! (`CountingSink`), and the report merges both once the run ends.
 
 use rodtrack_core::filter::TurnStats;
 use rodtrack_core::{CameraId, CameraPipeline, Measurement, Status};

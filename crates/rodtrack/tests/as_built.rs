@@ -9,8 +9,8 @@
 //! gross errors, and, since the known poses give the angle too, for the angle (calibration
 //! measures the angle's bias along the travel there); without them the scale is carried by the
 //! parallel rods' direction and the position bound is the one such a model gives, and the
-//! angle is printed (its target is not met without known poses; see the README's accuracy
-//! table).
+//! angle is printed (its target is not met without known poses; see the as-built table of
+//! `docs/accuracy.md`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
