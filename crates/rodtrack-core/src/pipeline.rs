@@ -193,6 +193,32 @@ pub fn filter_config(mode: Mode) -> FilterConfig {
     config
 }
 
+/// The quality at which a lone camera's first measurement of a rod is confirmed at once
+/// ([`FilterConfig::confirm_quality`] of [`filter_config_alone`]). Every factor of a row's
+/// quality (`track::quality`, see `docs/quality.md`) is then at least 0.9: the error the
+/// frame's evidence predicts is within 1/0.9 of the best the marker allows, and less than a
+/// tenth of the evidence a wrong Gray code leaves in the print is present. Over the quality
+/// relation's tables no row of that quality was grossly wrong (`docs/quality.md`).
+pub const CONFIRM_ALONE_QUALITY: f64 = 0.9;
+
+/// [`filter_config`] for a camera that no other camera can corroborate or contradict: in
+/// enhanced mode its first measurement of a rod is `ok` at once when its quality is at least
+/// [`CONFIRM_ALONE_QUALITY`] (with several cameras, the fused row is confirmed at once by the
+/// cameras' agreement instead). Paper mode keeps the published baseline's confirmation.
+///
+/// ```
+/// use rodtrack_core::{pipeline::{filter_config_alone, CONFIRM_ALONE_QUALITY}, Mode};
+/// assert_eq!(filter_config_alone(Mode::Enhanced).confirm_quality, Some(CONFIRM_ALONE_QUALITY));
+/// assert_eq!(filter_config_alone(Mode::Paper).confirm_quality, None);
+/// ```
+pub fn filter_config_alone(mode: Mode) -> FilterConfig {
+    let mut config = filter_config(mode);
+    if mode == Mode::Enhanced {
+        config.confirm_quality = Some(CONFIRM_ALONE_QUALITY);
+    }
+    config
+}
+
 /// A turn count given by the user: at frame `frame`, rod `rod` is at whole turn `turns`
 /// (`angle_unwrapped_rad = 2 pi turns + angle_rad` from that frame on, and the count is known).
 /// See [`crate::filter::RodFilter::reanchor_turns`].
@@ -233,6 +259,15 @@ impl CameraFilter {
     pub fn new(mode: Mode) -> Self {
         CameraFilter {
             bank: FilterBank::new(filter_config(mode)),
+            anchors: Vec::new(),
+        }
+    }
+
+    /// Filters for a camera with no other camera beside it ([`filter_config_alone`]: a
+    /// rod's first measurement of high quality is `ok` at once).
+    pub fn alone(mode: Mode) -> Self {
+        CameraFilter {
+            bank: FilterBank::new(filter_config_alone(mode)),
             anchors: Vec::new(),
         }
     }
@@ -373,7 +408,8 @@ pub struct FrameSetFilter {
 }
 
 impl FrameSetFilter {
-    /// Filters tuned to the measurement noise of `mode`; `fuse` adds fused rows.
+    /// Filters tuned to the measurement noise of `mode`; `fuse` adds fused rows. Without
+    /// fusion each camera is filtered alone ([`CameraFilter::alone`]).
     pub fn new(mode: Mode, fuse: bool) -> FrameSetFilter {
         FrameSetFilter {
             mode,
@@ -392,7 +428,11 @@ impl FrameSetFilter {
             };
             let c = c as usize;
             while self.per_camera.len() <= c {
-                self.per_camera.push(CameraFilter::new(self.mode));
+                self.per_camera.push(if self.fusion.is_some() {
+                    CameraFilter::new(self.mode)
+                } else {
+                    CameraFilter::alone(self.mode)
+                });
             }
             self.per_camera[c].process(std::slice::from_ref(m), out);
         }

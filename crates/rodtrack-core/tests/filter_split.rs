@@ -51,8 +51,15 @@ fn camera_filters_and_set_fusion_give_the_frame_set_filters_rows() {
     for mode in [Mode::Enhanced, Mode::Paper] {
         for ncam in [1u32, 2] {
             let mut reference = FrameSetFilter::new(mode, ncam > 1);
-            let mut cameras: Vec<CameraFilter> =
-                (0..ncam).map(|_| CameraFilter::new(mode)).collect();
+            let mut cameras: Vec<CameraFilter> = (0..ncam)
+                .map(|_| {
+                    if ncam > 1 {
+                        CameraFilter::new(mode)
+                    } else {
+                        CameraFilter::alone(mode)
+                    }
+                })
+                .collect();
             let mut fusion = SetFusion::new(mode);
             let mut noise = 0x9e37_79b9_7f4a_7c15;
             let (mut want, mut got, mut one) = (Vec::new(), Vec::new(), Vec::new());

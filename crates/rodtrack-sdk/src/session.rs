@@ -678,7 +678,11 @@ fn run_cameras<S: MeasurementSink + 'static>(
                 })?;
         }
         if options.filter {
-            let mut f = CameraFilter::new(options.mode);
+            let mut f = if fused {
+                CameraFilter::new(options.mode)
+            } else {
+                CameraFilter::alone(options.mode)
+            };
             f.set_turn_anchors(&options.turn_anchors);
             let mut commands = control.follower(CameraId::Camera(cam_index), &options.turn_anchors);
             pipeline

@@ -47,7 +47,7 @@ impl PyTracker {
         let n = cam.rods.len();
         Ok(PyTracker {
             pipe,
-            filter: filter.then(|| CameraFilter::new(mode)),
+            filter: filter.then(|| CameraFilter::alone(mode)),
             format,
             width: cam.image_width,
             height: cam.image_height,

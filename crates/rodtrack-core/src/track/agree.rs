@@ -42,6 +42,16 @@ pub(super) struct CodeCheck {
 const MAX_GROUPS: usize = 64;
 
 impl EnhancedState {
+    /// Whether the angle `theta` (Gray steps of a `steps`-step code) continues the last ok
+    /// frame's slowly: the rod turned less than [`CODE_CHECK_SLOW_STEPS`] since then, and
+    /// did so at the frame before too.
+    pub(super) fn continues_slowly(&self, theta: f64, steps: f64) -> bool {
+        self.last_ok_theta.is_some_and(|prev| {
+            wrap_steps_centred(theta - prev, steps).abs() < CODE_CHECK_SLOW_STEPS
+                && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS
+        })
+    }
+
     /// Fuses the phase with the Gray code and checks the angle against the print across the
     /// rod over every bit space.
     pub(super) fn code_check(
@@ -57,17 +67,13 @@ impl EnhancedState {
         // Temporal consistency: a rod measured ok at the last frame, turning slowly then and
         // now, cannot have had its high bits fooled (that jumps a group of 4 steps at once,
         // which only an acceleration beyond any rod's would hide): nothing to check.
-        let steps_f = m.steps() as f64;
-        if let Some(prev) = self.last_ok_theta {
-            let d = wrap_steps_centred(theta - prev, steps_f);
-            if d.abs() < CODE_CHECK_SLOW_STEPS && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS {
-                return CodeCheck {
-                    frac4,
-                    theta,
-                    worst_share: 0.0,
-                    better_reading: false,
-                };
-            }
+        if self.continues_slowly(theta, m.steps() as f64) {
+            return CodeCheck {
+                frac4,
+                theta,
+                worst_share: 0.0,
+                better_reading: false,
+            };
         }
         // The print coordinate grows with the sample angle across the rod as the phase does.
         let sign = calib.enhanced.phase_sign as f64;
@@ -75,6 +81,7 @@ impl EnhancedState {
         let position = inter.edges.position_mm;
         let ca = self.centre_at(m, reference_position_mm, position);
         let steps = m.steps();
+        let steps_f = steps as f64;
         let to_steps = sign * steps_f / TAU;
         let min_span = 0.2 * (inter.loc.white - inter.loc.black);
         let surface = &self.eps_angles[self.eps_best];

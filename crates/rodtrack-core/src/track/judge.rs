@@ -4,7 +4,7 @@ use super::agree::CodeCheck;
 use super::quality::{quality, QualityInputs};
 use super::result::RodResult;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
-use super::tuning::{CODE_CHECK_SLOW_STEPS, MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
+use super::tuning::{MAX_STRIPE_AMP_RATIO, MIN_STRIPE_SHARE};
 use crate::angle::{wrap_2pi, wrap_step, wrap_steps, wrap_steps_centred};
 use crate::calib::RodCalibration;
 use crate::marker::Marker;
@@ -98,12 +98,7 @@ impl EnhancedState {
         // The evidence against the reading's high bits: this frame's check across the rod,
         // or, when the reading continues the last ok frame's slowly (the check is skipped,
         // see `agree`), that of the check that started it.
-        let steps_f = steps as f64;
-        let continued = self.last_ok_theta.is_some_and(|prev| {
-            let d = (theta - prev + 0.5 * steps_f).rem_euclid(steps_f) - 0.5 * steps_f;
-            d.abs() < CODE_CHECK_SLOW_STEPS && self.last_dtheta.abs() < CODE_CHECK_SLOW_STEPS
-        });
-        let code_share = if continued {
+        let code_share = if self.continues_slowly(theta, steps as f64) {
             self.reading_code_share.max(check.worst_share)
         } else {
             check.worst_share
