@@ -2,9 +2,11 @@
 //! lamp's glare on a Gray code, a hand resting over part of a marker, and gameplay (hands,
 //! fast slides, a spin), the raw rows of both cameras:
 //!
-//! - no row `ok` with quality >= 0.9 has a gross error (0.2 rad or 5 mm off);
+//! - no row `ok` has a gross error (0.2 rad or 5 mm off), whatever its quality (a reading
+//!   that carries the whole evidence of a wrong Gray code, quality 0, is not `ok`);
 //! - the angle error's p90 falls with the quality: that of the rows of quality >= 0.9 is no
-//!   larger than that of the rows below, and band by band wherever bands hold enough rows.
+//!   larger than that of the rows below when enough rows lie below, and band by band wherever
+//!   bands hold enough rows.
 //!
 //! `cargo run --release -p rodtrack-eval --example quality_bands` prints the whole relation
 //! over more tables and scenes (the table in `docs/quality.md`).
@@ -16,7 +18,7 @@ use rodtrack_eval::quality::{bands, calibrate_table, format_bands, run_scene, Sc
 const ENOUGH_ROWS: usize = 20;
 
 #[test]
-fn quality_predicts_the_error() {
+fn no_ok_row_is_grossly_wrong_and_quality_predicts_the_error() {
     let t0 = std::time::Instant::now();
     let mut rows = Vec::new();
     for seed in [1u64, 2] {
@@ -33,15 +35,13 @@ fn quality_predicts_the_error() {
         t0.elapsed(),
         format_bands(&b)
     );
-    let confident_gross: Vec<_> = rows
-        .iter()
-        .filter(|r| r.gross() && r.quality >= 0.9)
-        .collect();
+    let gross: Vec<_> = rows.iter().filter(|r| r.gross()).collect();
     assert!(
-        confident_gross.is_empty(),
-        "{} rows ok with quality >= 0.9 and a gross error, first {:?}",
-        confident_gross.len(),
-        confident_gross.first()
+        gross.is_empty(),
+        "{} rows ok with a gross error ({} of quality >= 0.9), first {:?}",
+        gross.len(),
+        gross.iter().filter(|r| r.quality >= 0.9).count(),
+        gross.first()
     );
     // The angle error's p90 falls with the quality: rows of quality >= 0.9 against the
     // others, and band by band wherever two bands hold enough rows.
@@ -52,19 +52,27 @@ fn quality_predicts_the_error() {
     let (high, low): (Vec<&ScoredRow>, Vec<&ScoredRow>) =
         rows.iter().filter(|r| r.ok).partition(|r| r.quality >= 0.9);
     assert!(
-        high.len() >= ENOUGH_ROWS && low.len() >= ENOUGH_ROWS,
-        "too few rows to compare: {} of quality >= 0.9, {} below",
-        high.len(),
-        low.len()
+        high.len() >= ENOUGH_ROWS,
+        "too few rows of quality >= 0.9: {}",
+        high.len()
     );
-    let (p_high, p_low) = (
-        p90(high.iter().map(|r| r.angle_error_rad).collect()),
-        p90(low.iter().map(|r| r.angle_error_rad).collect()),
-    );
-    assert!(
-        p_high <= p_low,
-        "angle p90 {p_high:.4} rad at quality >= 0.9 above {p_low:.4} rad below it"
-    );
+    // Few rows below 0.9 are `ok` at all (most such readings are refused): compare only when
+    // enough are.
+    if low.len() >= ENOUGH_ROWS {
+        let (p_high, p_low) = (
+            p90(high.iter().map(|r| r.angle_error_rad).collect()),
+            p90(low.iter().map(|r| r.angle_error_rad).collect()),
+        );
+        assert!(
+            p_high <= p_low,
+            "angle p90 {p_high:.4} rad at quality >= 0.9 above {p_low:.4} rad below it"
+        );
+    } else {
+        eprintln!(
+            "{} ok rows below quality 0.9: too few to compare",
+            low.len()
+        );
+    }
     let filled: Vec<_> = b.iter().filter(|b| b.rows >= ENOUGH_ROWS).collect();
     for (i, upper) in filled.iter().enumerate() {
         for lower in &filled[..i] {

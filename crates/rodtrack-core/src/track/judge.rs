@@ -103,6 +103,14 @@ impl EnhancedState {
         } else {
             check.worst_share
         };
+        // A reading that disagrees with the print as much as the least wrong reading of the
+        // high bits would (`code_wrong_share`, from the code's geometry alone) carries the
+        // whole evidence of a wrong code: its quality's `q_code` is 0, and it is not `ok`
+        // whether or not another reading agrees better.
+        if self.code_wrong_share > 0.0 && code_share >= self.code_wrong_share {
+            status = Status::Occluded;
+            reason = "the print disagrees with the Gray code as much as a wrong reading would";
+        }
         let quality = quality(&QualityInputs {
             stripe_share: ph.share,
             amp_ratio,
