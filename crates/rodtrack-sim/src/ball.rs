@@ -204,6 +204,12 @@ impl Simulation {
         self.ctx.ball_truth(frame_index)
     }
 
+    /// Where the ball lies in camera `cam`'s ball calibration frame (world, mm); `None` if no
+    /// place between the rods shows it whole.
+    pub fn ball_click_position(&self, cam: usize) -> Option<[f64; 3]> {
+        self.ctx.ball_click_position(cam)
+    }
+
     /// Camera `cam`'s true pose in the table frame (table to camera).
     pub fn table_pose(&self, cam: usize) -> Result<Pose, SimError> {
         let c = self.ctx.camera(cam)?;
