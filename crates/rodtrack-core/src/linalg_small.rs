@@ -18,7 +18,7 @@ pub fn norm3(a: [f64; 3]) -> f64 {
 pub fn mat_inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     let c0 = cross(m[1], m[2]);
     let det = m[0][0] * c0[0] + m[0][1] * c0[1] + m[0][2] * c0[2];
-    if !(det.abs() > 1e-300) || !det.is_finite() {
+    if !det.is_finite() || det.abs() <= 1e-300 {
         return None;
     }
     let c1 = cross(m[2], m[0]);
@@ -40,7 +40,8 @@ pub fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Opt
         .max(1e-300);
     for col in 0..N {
         let piv = (col..N).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if !(a[piv][col].abs() > 1e-13 * scale) {
+        let p = a[piv][col].abs();
+        if p.is_nan() || p <= 1e-13 * scale {
             return None;
         }
         a.swap(col, piv);
@@ -48,8 +49,9 @@ pub fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Opt
         for row in col + 1..N {
             let f = a[row][col] / a[col][col];
             if f != 0.0 {
-                for k in col..N {
-                    a[row][k] -= f * a[col][k];
+                let (top, bottom) = a.split_at_mut(row);
+                for (x, p) in bottom[0][col..].iter_mut().zip(&top[col][col..]) {
+                    *x -= f * p;
                 }
                 b[row] -= f * b[col];
             }
@@ -68,6 +70,7 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn solves_and_inverts() {
         let a = [[2.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]];
         let x = solve_dense::<3>(a, [1.0, 2.0, 3.0]).unwrap();

@@ -1,6 +1,8 @@
 //! The table frame and the ball, end to end on the simulator: calibration from the simulated
 //! clicks, a session with the ball, the rows against the simulator's truth.
 
+#![allow(clippy::unwrap_used)]
+
 use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::calib::table::calibrate_table;
 use rodtrack_core::calib::{calibrate_camera, CalibrationFile, CALIBRATION_VERSION};

@@ -138,7 +138,7 @@ impl ColourModel {
         let f = chroma(field_rgb.map(|v| v as f32))?;
         let d = [b[0] - f[0], b[1] - f[1]];
         let n2 = d[0] * d[0] + d[1] * d[1];
-        if !(n2 > 0.0) {
+        if n2.is_nan() || n2 <= 0.0 {
             return None;
         }
         Some(ColourModel {

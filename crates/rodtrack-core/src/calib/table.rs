@@ -266,7 +266,10 @@ fn homography(from: &[[f64; 2]], to: &[[f64; 2]]) -> Option<[[f64; 3]; 3]> {
 }
 
 /// Translates to the centroid and scales to a mean distance of sqrt(2).
-fn normalise(p: &[[f64; 2]]) -> Option<([[f64; 3]; 3], Vec<[f64; 2]>)> {
+/// A normalising transform and the points it gives.
+type Normalised = ([[f64; 3]; 3], Vec<[f64; 2]>);
+
+fn normalise(p: &[[f64; 2]]) -> Option<Normalised> {
     let n = p.len() as f64;
     let cx = p.iter().map(|q| q[0]).sum::<f64>() / n;
     let cy = p.iter().map(|q| q[1]).sum::<f64>() / n;
@@ -275,7 +278,7 @@ fn normalise(p: &[[f64; 2]]) -> Option<([[f64; 3]; 3], Vec<[f64; 2]>)> {
         .map(|q| ((q[0] - cx).powi(2) + (q[1] - cy).powi(2)).sqrt())
         .sum::<f64>()
         / n;
-    if !(d > 1e-12) {
+    if d.is_nan() || d <= 1e-12 {
         return None;
     }
     let s = std::f64::consts::SQRT_2 / d;
@@ -303,7 +306,7 @@ fn pose_from_homography(h: &[[f64; 3]; 3]) -> Option<Pose> {
     let col = |j: usize| [h[0][j], h[1][j], h[2][j]];
     let (h1, h2, h3) = (col(0), col(1), col(2));
     let s = 0.5 * (norm3(h1) + norm3(h2));
-    if !(s > 1e-15) {
+    if s.is_nan() || s <= 1e-15 {
         return None;
     }
     let mut l = 1.0 / s;
