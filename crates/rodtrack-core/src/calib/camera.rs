@@ -109,7 +109,8 @@ pub fn calibrate_camera(
 }
 
 /// [`calibrate_camera`] from one frame in which every rod is at its reference pose (no known
-/// poses): the simulator's and the console's case.
+/// poses): the simulator's and the console's case. The inputs' `ball` is left out (its click
+/// is in a frame of its own: use [`calibrate_camera`] with that frame).
 pub fn calibrate_camera_from_view(
     inputs: &CalibrationInputs,
     view: &FrameView,
@@ -125,10 +126,11 @@ pub fn calibrate_camera_from_view(
     if frames.is_empty() {
         frames.push((inputs.reference_frames.reference_frame, *view));
     }
-    if let Some(b) = &inputs.ball {
-        if !frames.iter().any(|(i, _)| *i == b.frame) {
-            frames.push((b.frame, *view));
-        }
+    if inputs.ball.is_some() {
+        // The ball has its own frame, which this one view is not: no ball colour here.
+        let mut without_ball = inputs.clone();
+        without_ball.ball = None;
+        return calibrate_camera(&without_ball, &frames, index, default_fps);
     }
     calibrate_camera(inputs, &frames, index, default_fps)
 }
