@@ -101,6 +101,8 @@ pub fn default_inputs(index: u32, frame: &OwnedFrame) -> CalibrationInputs {
         },
         fps: None,
         rods: Vec::new(),
+        table: None,
+        ball: None,
     }
 }
 
@@ -292,6 +294,8 @@ pub(crate) fn calibrate_camera(
         pixel_format: view.format().name().to_string(),
         fps: cam.inputs.fps.unwrap_or(200.0),
         opencv_model: cam.inputs.opencv_model_optional.clone(),
+        table: None,
+        ball: None,
         rods,
     });
     Ok((outcomes, calibration))

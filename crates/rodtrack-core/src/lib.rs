@@ -2,6 +2,7 @@
 //! paper's signal steps and rodtrack's enhanced ones, and the measurement record. No I/O.
 
 pub mod angle;
+pub mod ball;
 pub mod calib;
 pub mod camera;
 pub mod decode;
@@ -9,6 +10,7 @@ pub mod error;
 pub mod filter;
 pub mod frame;
 pub mod fusion;
+pub mod linalg_small;
 pub mod line;
 pub mod marker;
 pub mod measurement;

@@ -540,6 +540,8 @@ pub fn auto_camera(
         },
         fps: Some(cfg.fps.or(src.fps).unwrap_or(200.0)),
         rods: rods_in,
+        table: None,
+        ball: None,
     };
     // All rods again together, as `calibrate --inputs` does with the inputs saved here (the
     // rods' common direction carries each one's scale along the travel).
@@ -670,6 +672,8 @@ fn camera_calibration(
         pixel_format: format.name().to_string(),
         fps: inputs.fps.unwrap_or(default_fps),
         opencv_model: inputs.opencv_model_optional.clone(),
+        table: None,
+        ball: None,
         rods,
     }
 }

@@ -293,6 +293,12 @@ pub fn calibrate_camera_file(
         let buf = folder.read(idx, &format!("rod {rod}: field `{field}`"))?;
         frames.push((idx, buf));
     }
+    if let Some(b) = &inputs.ball {
+        if !frames.iter().any(|(i, _)| *i == b.frame) {
+            let buf = folder.read(b.frame, "field `ball.frame`")?;
+            frames.push((b.frame, buf));
+        }
+    }
     let mut views: Vec<(usize, FrameView)> = Vec::new();
     for (i, buf) in &frames {
         let view = buf

@@ -27,6 +27,7 @@
 //! ```
 
 pub mod auto;
+pub mod ball;
 pub mod calibration;
 pub mod control;
 pub mod error;
@@ -36,6 +37,7 @@ pub mod session;
 pub mod sinks;
 pub mod sources;
 
+pub use ball::BallCounts;
 pub use calibration::{
     calibrate_camera_file, calibrate_files, calibration_file, print_warning, read_calibration,
     read_inputs, read_opencv_model, write_calibration, ReferenceFolder, DEFAULT_FPS,

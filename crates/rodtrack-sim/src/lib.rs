@@ -51,10 +51,12 @@
 //! 2 x 2 for moving objects. Speed: `cargo bench -p rodtrack-sim --bench render -- fast
 //! gameplay` (see the crate's bench for the numbers).
 
+pub mod ball;
 pub mod build;
 pub mod cameras;
 pub mod error;
 pub mod geom;
+mod inputs;
 pub mod motion;
 mod raster;
 pub mod record;

@@ -11,8 +11,14 @@
 //!   after `calibrateCamera` (when the calibration inputs hold the model);
 //! - `truth.csv`: SPEC section 6 columns plus `visible`, `camera` = camera index; rows of the
 //!   frames written only;
+//! - `ball_truth.csv` (scenarios with a ball): per frame written, the ball's centre and
+//!   velocity in the table frame and the fraction of it each camera sees
+//!   ([`crate::ball::BallTruthRow`]);
+//! - `<cam>_ref/NNNNNN.png` also holds the ball's calibration frame (rods at their reference
+//!   poses, the ball between two rods) named in the inputs' `ball.frame`;
 //! - `sim.json`: the scene, cameras, scenario, seed and frames that made it.
 
+use crate::ball::ball_truth_header;
 use crate::sim::{CalibOptions, Simulation, TruthRow};
 use crate::SimError;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
@@ -199,6 +205,19 @@ pub fn write_recording(
             )?;
         }
         let inputs = sim.calibration_inputs_with(ci, opts.calib_seed, &opts.calib)?;
+        if let Some(b) = &inputs.ball {
+            if let Some(p) = sim.ctx.ball_click_position(ci) {
+                let meta = sim.render_ball_frame(ci, p, buf)?;
+                write_png(
+                    &rdir.join(format!("{:06}.png", b.frame)),
+                    buf,
+                    meta.width,
+                    meta.height,
+                    meta.format,
+                    opts.png_fast,
+                )?;
+            }
+        }
         let p = out_dir.join(format!("{}.json", cam.name));
         let text = serde_json::to_string_pretty(&inputs).map_err(|e| io_err(&p, e))?;
         fs::write(&p, text).map_err(|e| io_err(&p, e))?;
@@ -212,6 +231,16 @@ pub fn write_recording(
     let tf = fs::File::create(&tp).map_err(|e| io_err(&tp, e))?;
     let mut truth = BufWriter::new(tf);
     writeln!(truth, "{}", truth_csv_header()).map_err(|e| io_err(&tp, e))?;
+    let mut ball_truth = match sim.ctx.scenario.ball {
+        Some(_) => {
+            let bp = out_dir.join("ball_truth.csv");
+            let f = fs::File::create(&bp).map_err(|e| io_err(&bp, e))?;
+            let mut w = BufWriter::new(f);
+            writeln!(w, "{}", ball_truth_header(ncam)).map_err(|e| io_err(&bp, e))?;
+            Some((bp, w))
+        }
+        None => None,
+    };
     let total = frames.len().div_ceil(opts.every.get());
     let mut rows = 0usize;
     let names: Vec<String> = sim.ctx.cameras.iter().map(|c| c.name.clone()).collect();
@@ -273,9 +302,15 @@ pub fn write_recording(
                 rows += 1;
             }
         }
+        if let (Some((bp, w)), Some(row)) = (&mut ball_truth, sim.ctx.ball_truth(fi)) {
+            writeln!(w, "{}", row.csv_line()).map_err(|e| io_err(bp, e))?;
+        }
         progress(done + 1, total);
     }
     truth.flush().map_err(|e| io_err(&tp, e))?;
+    if let Some((bp, mut w)) = ball_truth {
+        w.flush().map_err(|e| io_err(&bp, e))?;
+    }
     Ok(RecordSummary {
         frames: total,
         cameras: ncam,

@@ -75,6 +75,19 @@ impl BallPath {
         }
         self.keys.last().map(|k| (k.1, k.2))
     }
+
+    /// Ball velocity `(vx, vy)` at `t_s`, mm/s (the slope of the segment holding `t_s`; 0
+    /// outside the keypoints).
+    pub fn velocity(&self, t_s: f64) -> (f64, f64) {
+        for w in self.keys.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            if t_s >= a.0 && t_s < b.0 && b.0 > a.0 {
+                let dt = b.0 - a.0;
+                return ((b.1 - a.1) / dt, (b.2 - a.2) / dt);
+            }
+        }
+        (0.0, 0.0)
+    }
 }
 
 /// A complete motion script.
@@ -101,9 +114,9 @@ pub struct Scenario {
 }
 
 /// Names accepted by [`Scenario::by_name`].
-pub const SCENARIO_NAMES: [&str; 10] = [
+pub const SCENARIO_NAMES: [&str; 12] = [
     "exp1", "exp2", "exp3", "spin600", "spin3000", "lighting", "gameplay", "sweep", "static",
-    "poses",
+    "poses", "ball", "hands",
 ];
 
 impl Scenario {
@@ -276,6 +289,23 @@ impl Scenario {
                     s.rods[i].angle = Track::constant(rng.range(-1.2, 1.2));
                 }
             }
+            "ball" => {
+                // The ball rolling at up to 2 m/s, bouncing off the walls, now and then at
+                // rest; the rods wander slowly, so rods and figures pass over it.
+                end = 10.0;
+                for (i, &h) in halves.iter().enumerate() {
+                    s.rods[i] = wander(&mut rng, h, end, 100.0, 1.0);
+                }
+                s.ball = Some(rolling_ball(&mut rng, scene, end, 2000.0));
+            }
+            "hands" => {
+                // Hands and moving figures, no ball: for false detections.
+                end = 30.0;
+                for (i, &h) in halves.iter().enumerate() {
+                    s.rods[i] = gameplay_rod(&mut rng, h, end);
+                }
+                s.hands = gameplay_hands(&mut rng, scene, end);
+            }
             other => {
                 return Err(SimError::UnknownScenario {
                     name: other.to_string(),
@@ -407,6 +437,65 @@ fn ball_path(rng: &mut Rng, scene: &SceneConfig, end: f64) -> BallPath {
             rng.range(m, scene.field_length_mm - m),
             rng.range(m, scene.field_width_mm - m),
         ));
+    }
+    BallPath { keys }
+}
+
+/// A ball rolling in straight lines at up to `v_max_mm_s`, reflected by the walls, with a new
+/// speed and direction (or a rest) every 0.5 to 2 s.
+fn rolling_ball(rng: &mut Rng, scene: &SceneConfig, end: f64, v_max_mm_s: f64) -> BallPath {
+    let r = 0.5 * scene.ball_diameter_mm;
+    let (lo, hi) = (
+        [r + 1.0, r + 1.0],
+        [
+            scene.field_length_mm - r - 1.0,
+            scene.field_width_mm - r - 1.0,
+        ],
+    );
+    let mut p = [
+        rng.range(lo[0] + 50.0, hi[0] - 50.0),
+        rng.range(lo[1] + 50.0, hi[1] - 50.0),
+    ];
+    let mut t = 0.0;
+    let mut keys = vec![(t, p[0], p[1])];
+    while t < end {
+        let seg_end = t + rng.range(0.5, 2.0);
+        let speed = if rng.uniform() < 0.15 {
+            0.0
+        } else {
+            rng.range(0.1, 1.0) * v_max_mm_s
+        };
+        let a = rng.range(0.0, std::f64::consts::TAU);
+        let mut v = [speed * a.cos(), speed * a.sin()];
+        if speed == 0.0 {
+            t = seg_end;
+            keys.push((t, p[0], p[1]));
+            continue;
+        }
+        while t < seg_end {
+            // Time to the next wall along each axis.
+            let hit = |k: usize| -> f64 {
+                if v[k] > 0.0 {
+                    (hi[k] - p[k]) / v[k]
+                } else if v[k] < 0.0 {
+                    (lo[k] - p[k]) / v[k]
+                } else {
+                    f64::INFINITY
+                }
+            };
+            let (tx, ty) = (hit(0).max(0.0), hit(1).max(0.0));
+            let dt = tx.min(ty).min(seg_end - t);
+            p = [p[0] + v[0] * dt, p[1] + v[1] * dt];
+            t += dt;
+            if dt == tx {
+                v[0] = -v[0];
+            }
+            if dt == ty {
+                v[1] = -v[1];
+            }
+            p = [p[0].clamp(lo[0], hi[0]), p[1].clamp(lo[1], hi[1])];
+            keys.push((t, p[0], p[1]));
+        }
     }
     BallPath { keys }
 }

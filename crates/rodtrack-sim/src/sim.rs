@@ -2,15 +2,14 @@
 
 use crate::cameras::SimCamera;
 use crate::geom::{Obj, Shader, WorldGeom, WorldState, V3};
+use crate::inputs::known_pose_list;
 use crate::render::{noise_table, CameraRenderer, RenderMode};
-use crate::rng::{hash_words, Rng};
+use crate::rng::hash_words;
 use crate::scenario::Scenario;
 use crate::scene::{Lighting, SceneConfig};
 use crate::SimError;
 use rodtrack_core::angle::wrap_2pi;
-use rodtrack_core::calib::{
-    CalibrationInputs, ImageSize, KnownPose, OpencvModel, ReferenceFrames, ReferencePose, RodInputs,
-};
+use rodtrack_core::calib::CalibrationInputs;
 use rodtrack_core::{CameraId, Measurement, PixelFormat, Status, Timestamp};
 use serde::{Deserialize, Serialize};
 
@@ -57,6 +56,26 @@ pub struct CalibOptions {
     pub points_per_rod: usize,
     /// List the known-pose frames ([`Simulation::known_pose_frames`]) in the inputs.
     pub known_poses: bool,
+    /// Write the field's corners and the centre line's ends seen by the camera as `table`
+    /// points (SPEC section 9).
+    pub table_points: bool,
+    /// Standard deviation of the clicked table points, px.
+    pub table_click_noise_px: f64,
+    /// Write a ball calibration frame to the reference folder (after the known poses) and
+    /// the ball's click as `ball`.
+    pub ball_click: bool,
+}
+
+impl CalibOptions {
+    /// The reference folder's frame with the ball ([`CalibOptions::ball_click`]): after the
+    /// reference frame and the known poses of `rods` rods.
+    pub fn ball_frame(&self, rods: usize) -> usize {
+        if self.known_poses {
+            1 + 3 * rods
+        } else {
+            1
+        }
+    }
 }
 
 impl Default for CalibOptions {
@@ -66,6 +85,9 @@ impl Default for CalibOptions {
             click_noise_px: 1.0,
             points_per_rod: 4,
             known_poses: false,
+            table_points: true,
+            table_click_noise_px: 0.5,
+            ball_click: true,
         }
     }
 }
@@ -443,6 +465,8 @@ impl Simulation {
             pixel_format: meta.format.name().into(),
             fps: 1.0 / self.timestamp_s(1).max(1e-6),
             opencv_model: inputs.opencv_model_optional.clone(),
+            table: None,
+            ball: None,
             rods,
         })
     }
@@ -711,106 +735,4 @@ impl Ctx {
             Status::Ok
         }
     }
-
-    pub fn calibration_inputs(
-        &self,
-        cam: usize,
-        seed: u64,
-        opts: &CalibOptions,
-    ) -> Result<CalibrationInputs, SimError> {
-        let c = self.camera(cam)?;
-        let st = WorldState::posed(&self.reference);
-        let g = WorldGeom::build(&self.scene, &st, 0.0);
-        let mut rng = Rng::new(hash_words(&[seed, cam as u64, 0x000C_A11B]));
-        let len = self.scene.marker_len_mm();
-        let npts = opts.points_per_rod.clamp(3, 5);
-        let mut rods = Vec::new();
-        for (i, rc) in self.scene.rods.iter().enumerate() {
-            if self.marker_status(cam, i, &st, &g) != Status::Ok {
-                continue;
-            }
-            let h = rc.half_travel_mm();
-            let ys = [
-                rc.marker_y(0.0, -h),
-                rc.marker_y(len, -h),
-                rc.marker_y(0.0, h),
-                rc.marker_y(len, h),
-            ];
-            let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = ys.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let mut pts = Vec::new();
-            for k in 0..npts {
-                let f = 0.05 + 0.9 * k as f64 / (npts - 1) as f64;
-                let y = lo + f * (hi - lo);
-                if let Some((u, v)) = c.camera.project([rc.x_mm, y, rc.z_mm]) {
-                    if u >= 0.0
-                        && v >= 0.0
-                        && u <= c.camera.width as f64 - 1.0
-                        && v <= c.camera.height as f64 - 1.0
-                    {
-                        pts.push([
-                            u + opts.click_noise_px * rng.gaussian(),
-                            v + opts.click_noise_px * rng.gaussian(),
-                        ]);
-                    }
-                }
-            }
-            if pts.len() < 3 {
-                continue;
-            }
-            let (rp, ra) = self.reference[i];
-            rods.push(RodInputs {
-                rod: i as u32,
-                path_points_px: pts,
-                travel_mm: [-h, h],
-                reference: ReferencePose {
-                    frame: 0,
-                    position_mm: rp,
-                    angle_rad: ra,
-                },
-                known_poses: if opts.known_poses {
-                    known_pose_list(i, h)
-                        .into_iter()
-                        .map(|(frame, position_mm)| KnownPose {
-                            frame,
-                            position_mm,
-                            angle_rad: Some(ra),
-                        })
-                        .collect()
-                } else {
-                    Vec::new()
-                },
-                travel_frames: None,
-                marker: self.scene.marker_spec_for(i),
-            });
-        }
-        let k = &c.camera.intrinsics;
-        Ok(CalibrationInputs {
-            camera_name: c.name.clone(),
-            image_size: ImageSize {
-                width: c.camera.width,
-                height: c.camera.height,
-            },
-            pixel_format: c.pixel_format.name().to_string(),
-            opencv_model_optional: opts.include_opencv_model.then(|| OpencvModel {
-                camera_matrix: k.camera_matrix(),
-                dist_coeffs: k.dist_coeffs().to_vec(),
-            }),
-            reference_frames: ReferenceFrames {
-                dir: format!("{}_ref", c.name),
-                reference_frame: 0,
-            },
-            fps: Some(self.scenario.fps),
-            rods,
-        })
-    }
-}
-
-/// Rod `i`'s known-pose frames and positions: `(1 + 3 i, -h)`, `(2 + 3 i, 0)`, `(3 + 3 i, h)`.
-fn known_pose_list(i: usize, half_travel_mm: f64) -> [(usize, f64); 3] {
-    [
-        (1 + 3 * i, -half_travel_mm),
-        (2 + 3 * i, 0.0),
-        (3 + 3 * i, half_travel_mm),
-    ]
 }

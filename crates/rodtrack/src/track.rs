@@ -55,6 +55,11 @@ pub struct Args {
     /// (`turns_known` false) when the rod's true turn is known, e.g. at a mark.
     #[arg(long = "reanchor", value_parser = parse_anchor)]
     pub reanchor: Vec<rodtrack_core::TurnAnchor>,
+    /// Track the ball too (cameras whose calibration has `[cameras.ball]`) and write its rows
+    /// to this CSV file: `frame,timestamp_s,camera,x_mm,y_mm,vx_mm_s,vy_mm_s,quality,status`
+    /// (table frame, docs/ball.md).
+    #[arg(long)]
+    pub ball_out: Option<PathBuf>,
 }
 
 /// Parses `FRAME:ROD:TURNS`.
@@ -82,6 +87,9 @@ fn parse_anchor(s: &str) -> std::result::Result<rodtrack_core::TurnAnchor, Strin
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
     check_out_is_not_an_input(&args.out, &[&args.calib])?;
+    if let Some(b) = &args.ball_out {
+        check_out_is_not_an_input(b, &[&args.calib, &args.out])?;
+    }
     let cal = read_calibration(&args.calib)?;
     let mode = args.mode.into();
     if args.inputs.len() != cal.cameras.len() {
@@ -107,7 +115,12 @@ pub fn run(args: Args) -> Result<()> {
         turn_anchors: args.reanchor.clone(),
         ..SessionOptions::default()
     };
-    let session = Session::open(&cal, &args.inputs, options)?;
+    let mut session = Session::open(&cal, &args.inputs, options)?;
+    if let Some(path) = &args.ball_out {
+        let sink = rodtrack_io::BallCsvSink::create(path)
+            .with_context(|| format!("creating the ball output {}", path.display()))?;
+        session = session.with_ball(&cal, Box::new(sink))?;
+    }
     for cam in session.cameras() {
         print_source_warnings(&cam.label, &*cam.source);
     }
@@ -153,6 +166,15 @@ pub fn run(args: Args) -> Result<()> {
             report.pipeline.sink_errors,
             report.pipeline.first_sink_error.as_deref().unwrap_or("?"),
             args.out.display()
+        );
+    }
+    if let (Some(path), Some(b)) = (&args.ball_out, report.ball) {
+        println!(
+            "wrote {}: ball {} ok, {} predicted, {} lost",
+            path.display(),
+            b.ok,
+            b.predicted,
+            b.lost
         );
     }
     if args.out.as_os_str() == "-" {

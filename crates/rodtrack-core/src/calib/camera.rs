@@ -1,8 +1,10 @@
 //! One camera's calibration from its inputs and its reference frames, already in memory.
 
+use super::ball::calibrate_ball;
 use super::file::CameraCalibration;
 use super::inputs::CalibrationInputs;
 use super::rods::calibrate_rods;
+use super::table::calibrate_table;
 use crate::{CameraIntrinsics, CoreError, FrameView};
 
 /// Calibrates every rod of camera `index` from its inputs and the frames they name: `frames`
@@ -63,6 +65,35 @@ pub fn calibrate_camera(
     let rods = calibrate_rods(&inputs.rods, frames, intrinsics.as_ref())
         .into_iter()
         .collect::<Result<Vec<_>, _>>()?;
+    let name = camera();
+    let table = match (&inputs.table, &intrinsics) {
+        (Some(t), Some(k)) => Some(calibrate_table(t, k, &name)?),
+        (Some(_), None) => {
+            return Err(field(
+                "table",
+                "needs the camera model (`opencv_model_optional` or `opencv_model_file`)".into(),
+            ))
+        }
+        (None, _) => None,
+    };
+    let ball = match (&inputs.ball, &table, &intrinsics) {
+        (Some(b), Some(t), Some(k)) => {
+            let Some((_, view)) = frames.iter().find(|(i, _)| *i == b.frame) else {
+                return Err(field(
+                    "ball.frame",
+                    format!("frame {} was not given to calibrate from", b.frame),
+                ));
+            };
+            Some(calibrate_ball(b, view, t, k, &name)?)
+        }
+        (Some(_), _, _) => {
+            return Err(field(
+                "ball",
+                "needs the table frame (`table.points`) to place the ball".into(),
+            ))
+        }
+        (None, _, _) => None,
+    };
     Ok(CameraCalibration {
         name: inputs.camera_name.clone(),
         index,
@@ -71,12 +102,15 @@ pub fn calibrate_camera(
         pixel_format: first.format().name().to_string(),
         fps: inputs.fps.unwrap_or(default_fps),
         opencv_model: inputs.opencv_model_optional.clone(),
+        table,
+        ball,
         rods,
     })
 }
 
 /// [`calibrate_camera`] from one frame in which every rod is at its reference pose (no known
-/// poses): the simulator's and the console's case.
+/// poses): the simulator's and the console's case. The inputs' `ball` is left out (its click
+/// is in a frame of its own: use [`calibrate_camera`] with that frame).
 pub fn calibrate_camera_from_view(
     inputs: &CalibrationInputs,
     view: &FrameView,
@@ -91,6 +125,12 @@ pub fn calibrate_camera_from_view(
     }
     if frames.is_empty() {
         frames.push((inputs.reference_frames.reference_frame, *view));
+    }
+    if inputs.ball.is_some() {
+        // The ball has its own frame, which this one view is not: no ball colour here.
+        let mut without_ball = inputs.clone();
+        without_ball.ball = None;
+        return calibrate_camera(&without_ball, &frames, index, default_fps);
     }
     calibrate_camera(inputs, &frames, index, default_fps)
 }

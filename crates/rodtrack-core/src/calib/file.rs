@@ -1,7 +1,9 @@
 //! The calibration file: everything tracking needs per rod, human-readable (TOML), validated on
 //! load with errors that name the rod and the field.
 
+use super::ball::BallCalibration;
 use super::opencv::OpencvModel;
+use super::table::TableCalibration;
 use crate::line::Knots;
 use crate::marker::{Marker, MarkerSpec};
 use crate::{CoreError, PixelFormat};
@@ -196,6 +198,12 @@ pub struct CameraCalibration {
     /// The OpenCV model, when one was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub opencv_model: Option<OpencvModel>,
+    /// The camera's pose in the table frame, when the inputs gave field points.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<TableCalibration>,
+    /// The ball's and the field's colours, when the inputs gave a ball click.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ball: Option<BallCalibration>,
     /// The rods this camera sees.
     pub rods: Vec<RodCalibration>,
 }

@@ -8,8 +8,10 @@
 //! resolves that key and puts the model it reads into `opencv_model_optional`; giving both is
 //! an error.
 
+pub use super::ball::BallInputs;
 pub use super::image_size::ImageSize;
 pub use super::opencv::OpencvModel;
+pub use super::table::{TableInputs, TablePoint};
 use crate::marker::MarkerSpec;
 use serde::{Deserialize, Serialize};
 
@@ -134,4 +136,11 @@ pub struct CalibrationInputs {
     pub fps: Option<f64>,
     /// The rods.
     pub rods: Vec<RodInputs>,
+    /// Field points clicked in the reference frame: they give the camera's pose in the table
+    /// frame (SPEC section 9; needs the camera model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<TableInputs>,
+    /// The ball clicked once in a frame of the reference folder: its colour.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ball: Option<BallInputs>,
 }

@@ -185,6 +185,26 @@ pub fn validate_camera(cam: &CameraCalibration) -> Result<(), CoreError> {
     for r in &cam.rods {
         check_travel(r.rod, r.travel_mm)?;
     }
+    if let Some(t) = &cam.table {
+        if cam.opencv_model.is_none() {
+            return Err(cam_err(
+                &camera,
+                "table",
+                "needs the camera model (`opencv_model`) it was measured with".into(),
+            ));
+        }
+        t.validate(&camera)?;
+    }
+    if let Some(b) = &cam.ball {
+        if cam.table.is_none() {
+            return Err(cam_err(
+                &camera,
+                "ball",
+                "needs the table frame (`[cameras.table]`) to place the ball".into(),
+            ));
+        }
+        b.validate(&camera)?;
+    }
     Ok(())
 }
 

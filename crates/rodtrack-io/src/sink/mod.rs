@@ -6,11 +6,13 @@
 //! [`crate::runtime::WriteMode::PerCamera`], once per camera frame as soon as it is measured
 //! and once more for the set's fused rows.
 
+mod ball;
 mod csv;
 mod jsonl;
 mod udp;
 
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
+pub use ball::{BallCsvSink, BallSink, BallVecSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
     decode_udp_packet, encode_udp_packet, status_code, status_from_code, UdpPacket, UdpSink,

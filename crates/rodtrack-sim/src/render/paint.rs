@@ -57,11 +57,13 @@ impl CameraRenderer {
                     c[2] - self.origin[2],
                 ];
                 let dist = (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt() - r;
+                // A bounding disc around the projected centre: the silhouette itself (the
+                // sphere's tangent cone, with perspective and distortion) is found per pixel.
                 quads.push(Quad {
                     v: [
                         [u as f32, v as f32],
-                        [(u2 - u).abs() as f32 + 0.5, 0.0],
-                        [0.0; 2],
+                        [1.3 * (u2 - u).abs() as f32 + 3.0, 0.0],
+                        [r, 0.0],
                         [0.0; 2],
                     ],
                     dist,
@@ -111,6 +113,25 @@ impl CameraRenderer {
                 }
                 for x in x0 as usize..=x1 as usize {
                     let p = y * self.w + x;
+                    // The ball: the pixel's ray against the sphere (its true silhouette).
+                    let mut t_ball = 0.0f32;
+                    let mut nz_ball = 0.0f32;
+                    if q.disc {
+                        let (d, _, _) = self.grid.sample(x as f32, y as f32);
+                        let w = [
+                            q.c[0] - self.origin[0],
+                            q.c[1] - self.origin[1],
+                            q.c[2] - self.origin[2],
+                        ];
+                        let b = d[0] * w[0] + d[1] * w[1] + d[2] * w[2];
+                        let r = q.v[2][0];
+                        let disc = b * b - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2] - r * r);
+                        if disc < 0.0 {
+                            continue;
+                        }
+                        t_ball = b - disc.sqrt();
+                        nz_ball = (self.origin[2] + t_ball * d[2] - q.c[2]) / r;
+                    }
                     let mut rm = self.rod_mask[p];
                     if rm != 0 {
                         // A ray from above meets a face that lies above the rod's top first.
@@ -123,7 +144,9 @@ impl CameraRenderer {
                     if rm != 0 || wall {
                         let (d, _, _) = self.grid.sample(x as f32, y as f32);
                         let nd = q.n[0] * d[0] + q.n[1] * d[1] + q.n[2] * d[2];
-                        let t_face = if q.disc || nd.abs() < 1e-6 {
+                        let t_face = if q.disc {
+                            t_ball
+                        } else if nd.abs() < 1e-6 {
                             q.dist
                         } else {
                             (q.n[0] * (q.c[0] - self.origin[0])
@@ -144,11 +167,8 @@ impl CameraRenderer {
                         }
                     }
                     let rgb = if q.disc {
-                        let dx = x as f32 - u;
-                        let dy = y as f32 - v;
-                        let r = q.v[1][0];
-                        let nz = (1.0 - (dx * dx + dy * dy) / (r * r)).max(0.0).sqrt();
-                        let sh = amb + (1.0 - amb) * nz;
+                        // Lit from above, as the quality mode's tracer shades it.
+                        let sh = amb + (1.0 - amb) * nz_ball.max(0.0);
                         val.map(|c| c * sh)
                     } else {
                         val

@@ -1,0 +1,234 @@
+//! Colour from the mosaic: one RGB sample per Bayer quad (2 x 2 pixels), its chromaticity, and
+//! the calibrated ball / field colour model that classifies it.
+
+use crate::{FrameView, PixelFormat};
+
+/// Where red and blue sit in a 2 x 2 quad (indices `0` = top left, `1` = top right, `2` =
+/// bottom left, `3` = bottom right; the two others are green), or an RGB image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuadLayout {
+    kind: Kind,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    Bayer { r: usize, b: usize, wide: bool },
+    Rgb8,
+}
+
+impl QuadLayout {
+    /// The layout of `format`; `None` for formats without colour (mono).
+    pub fn of(format: PixelFormat) -> Option<QuadLayout> {
+        use PixelFormat::*;
+        let kind = match format {
+            BayerRggb8 => Kind::Bayer {
+                r: 0,
+                b: 3,
+                wide: false,
+            },
+            BayerBggr8 => Kind::Bayer {
+                r: 3,
+                b: 0,
+                wide: false,
+            },
+            BayerGrbg8 => Kind::Bayer {
+                r: 1,
+                b: 2,
+                wide: false,
+            },
+            BayerGbrg8 => Kind::Bayer {
+                r: 2,
+                b: 1,
+                wide: false,
+            },
+            BayerRggb16 => Kind::Bayer {
+                r: 0,
+                b: 3,
+                wide: true,
+            },
+            BayerBggr16 => Kind::Bayer {
+                r: 3,
+                b: 0,
+                wide: true,
+            },
+            BayerGrbg16 => Kind::Bayer {
+                r: 1,
+                b: 2,
+                wide: true,
+            },
+            BayerGbrg16 => Kind::Bayer {
+                r: 2,
+                b: 1,
+                wide: true,
+            },
+            Rgb8 => Kind::Rgb8,
+            _ => return None,
+        };
+        Some(QuadLayout { kind })
+    }
+
+    /// The mean `[R, G, B]` of quad `(qx, qy)` (pixels `2 qx .. 2 qx + 1`, `2 qy .. 2 qy + 1`),
+    /// 8-bit scale. The caller keeps the quad inside the view (`qx < width / 2`, `qy < height
+    /// / 2`).
+    #[inline]
+    pub fn rgb(&self, view: &FrameView, qx: usize, qy: usize) -> [f32; 3] {
+        let d = view.data();
+        let s = view.stride();
+        match self.kind {
+            Kind::Bayer { r, b, wide } => {
+                let px = |i: usize| -> f32 {
+                    let (x, y) = (2 * qx + (i & 1), 2 * qy + (i >> 1));
+                    if wide {
+                        let o = y * s + 2 * x;
+                        u16::from_le_bytes([d[o], d[o + 1]]) as f32 / 256.0
+                    } else {
+                        d[y * s + x] as f32
+                    }
+                };
+                let v = [px(0), px(1), px(2), px(3)];
+                let g = 0.5 * (v[0] + v[1] + v[2] + v[3] - v[r] - v[b]);
+                [v[r], g, v[b]]
+            }
+            Kind::Rgb8 => {
+                let mut acc = [0.0f32; 3];
+                for i in 0..4 {
+                    let (x, y) = (2 * qx + (i & 1), 2 * qy + (i >> 1));
+                    let o = y * s + 3 * x;
+                    for c in 0..3 {
+                        acc[c] += d[o + c] as f32;
+                    }
+                }
+                acc.map(|v| 0.25 * v)
+            }
+        }
+    }
+}
+
+/// Chromaticity `(R, G) / (R + G + B)` (independent of shading); `None` for a black sample.
+#[inline]
+pub fn chroma(rgb: [f32; 3]) -> Option<[f32; 2]> {
+    let s = rgb[0] + rgb[1] + rgb[2];
+    (s > 1.0).then(|| [rgb[0] / s, rgb[1] / s])
+}
+
+/// How far apart (in chromaticity) a calibrated colour's samples may be: this many standard
+/// deviations of the spread calibration measured (a statistical bound, not a tuned value).
+pub const SPREAD_SIGMAS: f32 = 4.0;
+
+/// The ball's and the field's colours as calibration measured them, ready to classify quads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColourModel {
+    ball: [f32; 2],
+    field: [f32; 2],
+    ball_thr: f32,
+    field_thr: f32,
+    axis: [f32; 2],
+}
+
+impl ColourModel {
+    /// From mean colours (RGB) and chromaticity spreads (RMS distance of a sample from the
+    /// mean); `None` when a colour is black.
+    pub fn new(
+        ball_rgb: [f64; 3],
+        ball_spread: f64,
+        field_rgb: [f64; 3],
+        field_spread: f64,
+    ) -> Option<ColourModel> {
+        let b = chroma(ball_rgb.map(|v| v as f32))?;
+        let f = chroma(field_rgb.map(|v| v as f32))?;
+        let d = [b[0] - f[0], b[1] - f[1]];
+        let n2 = d[0] * d[0] + d[1] * d[1];
+        if n2.is_nan() || n2 <= 0.0 {
+            return None;
+        }
+        Some(ColourModel {
+            ball: b,
+            field: f,
+            ball_thr: SPREAD_SIGMAS * ball_spread as f32,
+            field_thr: SPREAD_SIGMAS * field_spread as f32,
+            axis: [d[0] / n2, d[1] / n2],
+        })
+    }
+
+    /// Distance of the chromaticities of ball and field.
+    pub fn separation(&self) -> f32 {
+        dist(self.ball, self.field)
+    }
+
+    /// A sample of the ball's colour: within the ball's spread and nearer the ball than the
+    /// field.
+    #[inline]
+    pub fn is_ball(&self, rgb: [f32; 3]) -> bool {
+        match chroma(rgb) {
+            Some(c) => {
+                let db = dist(c, self.ball);
+                db < self.ball_thr && db < dist(c, self.field)
+            }
+            None => false,
+        }
+    }
+
+    /// A sample of the empty field's colour.
+    #[inline]
+    pub fn is_field(&self, rgb: [f32; 3]) -> bool {
+        match chroma(rgb) {
+            Some(c) => {
+                let df = dist(c, self.field);
+                df < self.field_thr && df < dist(c, self.ball)
+            }
+            None => false,
+        }
+    }
+
+    /// Position of the sample along the field -> ball chromaticity axis (0 field, 1 ball).
+    #[inline]
+    pub fn alpha(&self, rgb: [f32; 3]) -> f32 {
+        match chroma(rgb) {
+            Some(c) => {
+                (c[0] - self.field[0]) * self.axis[0] + (c[1] - self.field[1]) * self.axis[1]
+            }
+            None => 0.0,
+        }
+    }
+}
+
+#[inline]
+fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bayer_quads_read_their_channels() {
+        // RGGB quad: R 200, G 100 and 120, B 40.
+        let data = [200u8, 100, 120, 40];
+        let v = FrameView::new(&data, 2, 2, 2, PixelFormat::BayerRggb8).unwrap();
+        assert_eq!(
+            QuadLayout::of(PixelFormat::BayerRggb8)
+                .unwrap()
+                .rgb(&v, 0, 0),
+            [200.0, 110.0, 40.0]
+        );
+        let v = FrameView::new(&data, 2, 2, 2, PixelFormat::BayerGbrg8).unwrap();
+        assert_eq!(
+            QuadLayout::of(PixelFormat::BayerGbrg8)
+                .unwrap()
+                .rgb(&v, 0, 0),
+            [120.0, 120.0, 100.0]
+        );
+        assert!(QuadLayout::of(PixelFormat::Mono8).is_none());
+    }
+
+    #[test]
+    fn classifies_by_chromaticity_whatever_the_shading() {
+        let m = ColourModel::new([240.0, 150.0, 40.0], 0.01, [25.0, 95.0, 30.0], 0.01).unwrap();
+        assert!(m.is_ball([120.0, 75.0, 20.0]));
+        assert!(!m.is_ball([200.0, 150.0, 115.0]), "skin is not the ball");
+        assert!(m.is_field([50.0, 190.0, 60.0]));
+        assert!((m.alpha([240.0, 150.0, 40.0]) - 1.0).abs() < 1e-4);
+        assert!(m.alpha([25.0, 95.0, 30.0]).abs() < 1e-4);
+    }
+}

@@ -1,0 +1,479 @@
+//! Finding the ball in one frame: colour candidates on a grid of Bayer quads, the compact blob
+//! of the ball's expected size, its silhouette's edge points, and the sphere's centre fitted
+//! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
+
+use super::colour::{ColourModel, QuadLayout};
+use super::tuning::{
+    AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS, N_RAYS,
+    RESIDUAL_RATIO_MAX, WINDOW_RADII,
+};
+use crate::calib::ball::expected_radius_px;
+use crate::calib::CameraCalibration;
+use crate::{Camera, CameraIntrinsics, CoreError, FrameView};
+
+/// One detection of the ball.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection {
+    /// The ball's centre in the table frame, mm.
+    pub x_mm: f64,
+    /// The ball's centre in the table frame, mm.
+    pub y_mm: f64,
+    /// The projected centre, px.
+    pub u_px: f64,
+    /// The projected centre, px.
+    pub v_px: f64,
+    /// Edge points used in the fit.
+    pub edge_points: usize,
+    /// Fraction of the silhouette's rays that gave an edge point (0..1).
+    pub seen_fraction: f64,
+    /// RMS distance of the edge rays from the sphere, mm.
+    pub residual_mm: f64,
+}
+
+/// The detector of one camera; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct BallDetector {
+    layout: QuadLayout,
+    colours: ColourModel,
+    cam: Camera,
+    radius_mm: f64,
+    qw: usize,
+    qh: usize,
+    /// The region searched when lost, quads: `[x0, y0, x1, y1)`.
+    field_q: [usize; 4],
+    coarse_step: usize,
+    mask: Vec<u8>,
+    stack: Vec<u32>,
+    dirs: [[f32; 2]; N_RAYS],
+    rays: Vec<[f64; 3]>,
+    octant: Vec<u8>,
+    resid: Vec<f64>,
+    sorted: Vec<f64>,
+}
+
+/// A blob of colour candidates.
+#[derive(Debug, Clone, Copy)]
+struct Blob {
+    cx_q: f64,
+    cy_q: f64,
+    rq: f64,
+    score: f64,
+}
+
+impl BallDetector {
+    /// The detector of a camera's calibration; `None` when it has no `[cameras.ball]`.
+    pub fn new(cal: &CameraCalibration) -> Result<Option<BallDetector>, CoreError> {
+        let Some(ball) = &cal.ball else {
+            return Ok(None);
+        };
+        let camera = format!("{} ({})", cal.index, cal.name);
+        let err = |field: &str, reason: String| CoreError::CameraField {
+            camera: camera.clone(),
+            field: field.to_string(),
+            reason,
+        };
+        let table = cal
+            .table
+            .as_ref()
+            .ok_or_else(|| err("ball", "needs `[cameras.table]`".into()))?;
+        let model = cal
+            .opencv_model
+            .as_ref()
+            .ok_or_else(|| err("ball", "needs the camera model `opencv_model`".into()))?;
+        let k = CameraIntrinsics::from_opencv(model.camera_matrix, &model.dist_coeffs)
+            .map_err(|e| err("opencv_model", e.to_string()))?;
+        let format = cal.format()?;
+        let layout = QuadLayout::of(format).ok_or_else(|| {
+            err(
+                "pixel_format",
+                format!("the ball needs a colour format, got {}", format.name()),
+            )
+        })?;
+        let colours = ball.colour_model(&camera)?;
+        let cam = table.camera(k, cal.image_width, cal.image_height);
+        let radius_mm = 0.5 * ball.diameter_mm;
+        let (qw, qh) = (cal.image_width / 2, cal.image_height / 2);
+        // The whole image is searched (a camera's table points span only the part of the
+        // field it sees); the smallest expected ball over the image's border and centre sets
+        // the coarse step.
+        let (w, h) = (cal.image_width as f64, cal.image_height as f64);
+        let mut rq_min = f64::INFINITY;
+        for i in 0..=8 {
+            let s = i as f64 / 8.0;
+            for (u, v) in [
+                (s * (w - 1.0), 0.0),
+                (s * (w - 1.0), h - 1.0),
+                (0.0, s * (h - 1.0)),
+                (w - 1.0, s * (h - 1.0)),
+                (0.5 * w, 0.5 * h),
+            ] {
+                if let Some(r) = expected_radius_px(&cam, u, v, radius_mm) {
+                    rq_min = rq_min.min(0.5 * r);
+                }
+            }
+        }
+        if !rq_min.is_finite() {
+            return Err(err(
+                "table",
+                "the field plane is not in front of the camera".into(),
+            ));
+        }
+        let field_q = [0, 0, qw, qh];
+        // Every 4th quad when the ball is large enough to leave a blob of cells at that step.
+        let coarse_step = ((rq_min / 2.0).floor() as usize).clamp(1, 4);
+        let mut dirs = [[0.0f32; 2]; N_RAYS];
+        for (i, d) in dirs.iter_mut().enumerate() {
+            let a = std::f32::consts::TAU * i as f32 / N_RAYS as f32;
+            *d = [a.cos(), a.sin()];
+        }
+        Ok(Some(BallDetector {
+            layout,
+            colours,
+            cam,
+            radius_mm,
+            qw,
+            qh,
+            field_q,
+            coarse_step,
+            mask: vec![0; qw * qh],
+            stack: Vec::with_capacity(qw * qh),
+            dirs,
+            rays: Vec::with_capacity(N_RAYS),
+            octant: Vec::with_capacity(N_RAYS),
+            resid: Vec::with_capacity(N_RAYS),
+            sorted: Vec::with_capacity(N_RAYS),
+        }))
+    }
+
+    /// The camera in the table frame.
+    pub fn camera(&self) -> &Camera {
+        &self.cam
+    }
+
+    /// The ball's radius, mm.
+    pub fn radius_mm(&self) -> f64 {
+        self.radius_mm
+    }
+
+    /// The coarse scan's step, quads.
+    pub fn coarse_step(&self) -> usize {
+        self.coarse_step
+    }
+
+    /// Looks for the ball: in a window around `around_px` (the prediction) when given, else
+    /// (or when the window finds nothing) over the whole field with the coarse step.
+    pub fn detect(&mut self, view: &FrameView, around_px: Option<(f64, f64)>) -> Option<Detection> {
+        if view.width() / 2 != self.qw || view.height() / 2 != self.qh {
+            return None;
+        }
+        if let Some((u, v)) = around_px {
+            if let Some(r) = expected_radius_px(&self.cam, u, v, self.radius_mm) {
+                let rq = 0.5 * r;
+                let (cx, cy) = ((u - 0.5) / 2.0, (v - 0.5) / 2.0);
+                let h = WINDOW_RADII * rq + 2.0;
+                let region = [
+                    (cx - h).floor().max(self.field_q[0] as f64) as usize,
+                    (cy - h).floor().max(self.field_q[1] as f64) as usize,
+                    ((cx + h).ceil().max(0.0) as usize).min(self.field_q[2]),
+                    ((cy + h).ceil().max(0.0) as usize).min(self.field_q[3]),
+                ];
+                let step = ((rq / 4.0).floor() as usize).clamp(1, 2);
+                if region[2] > region[0] && region[3] > region[1] {
+                    if let Some(d) = self.scan_and_fit(view, region, step) {
+                        return Some(d);
+                    }
+                }
+            }
+        }
+        self.scan_and_fit(view, self.field_q, self.coarse_step)
+    }
+
+    fn scan_and_fit(
+        &mut self,
+        view: &FrameView,
+        region: [usize; 4],
+        step: usize,
+    ) -> Option<Detection> {
+        let blob = self.best_blob(view, region, step)?;
+        self.fit(view, blob)
+    }
+
+    /// Marks the ball-coloured quads of `region` every `step` quads and returns the blob whose
+    /// size and extent match the ball's expected image there.
+    fn best_blob(&mut self, view: &FrameView, region: [usize; 4], step: usize) -> Option<Blob> {
+        let [x0, y0, x1, y1] = region;
+        let gw = (x1 - x0).div_ceil(step);
+        let gh = (y1 - y0).div_ceil(step);
+        let n = gw * gh;
+        if n == 0 || n > self.mask.len() {
+            return None;
+        }
+        for gy in 0..gh {
+            let qy = y0 + gy * step;
+            for gx in 0..gw {
+                let qx = x0 + gx * step;
+                self.mask[gy * gw + gx] = self.colours.is_ball(self.layout.rgb(view, qx, qy)) as u8;
+            }
+        }
+        let mut best: Option<Blob> = None;
+        for start in 0..n {
+            if self.mask[start] != 1 {
+                continue;
+            }
+            self.stack.clear();
+            self.stack.push(start as u32);
+            self.mask[start] = 2;
+            let (mut cnt, mut sx, mut sy) = (0usize, 0usize, 0usize);
+            let (mut bx0, mut by0, mut bx1, mut by1) = (usize::MAX, usize::MAX, 0usize, 0usize);
+            while let Some(c) = self.stack.pop() {
+                let c = c as usize;
+                let (gx, gy) = (c % gw, c / gw);
+                cnt += 1;
+                sx += gx;
+                sy += gy;
+                bx0 = bx0.min(gx);
+                by0 = by0.min(gy);
+                bx1 = bx1.max(gx);
+                by1 = by1.max(gy);
+                for (dx, dy) in [
+                    (-1i64, 0i64),
+                    (1, 0),
+                    (0, -1),
+                    (0, 1),
+                    (-1, -1),
+                    (1, 1),
+                    (-1, 1),
+                    (1, -1),
+                ] {
+                    let (nx, ny) = (gx as i64 + dx, gy as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= gw as i64 || ny >= gh as i64 {
+                        continue;
+                    }
+                    let ni = ny as usize * gw + nx as usize;
+                    if self.mask[ni] == 1 {
+                        self.mask[ni] = 2;
+                        self.stack.push(ni as u32);
+                    }
+                }
+            }
+            let s = step as f64;
+            let cx_q = x0 as f64 + s * sx as f64 / cnt as f64;
+            let cy_q = y0 as f64 + s * sy as f64 / cnt as f64;
+            let Some(r) = expected_radius_px(
+                &self.cam,
+                2.0 * cx_q + 0.5,
+                2.0 * cy_q + 0.5,
+                self.radius_mm,
+            ) else {
+                continue;
+            };
+            let rq = 0.5 * r;
+            let expected = std::f64::consts::PI * rq * rq / (s * s);
+            let ratio = cnt as f64 / expected;
+            let ext_x = (bx1 - bx0 + 1) as f64 * s;
+            let ext_y = (by1 - by0 + 1) as f64 * s;
+            let max_ext = EXTENT_RATIO_MAX * 2.0 * rq + s;
+            if !(AREA_RATIO_MIN..=AREA_RATIO_MAX).contains(&ratio)
+                || ext_x > max_ext
+                || ext_y > max_ext
+            {
+                continue;
+            }
+            let score = ratio.ln().abs();
+            if best.is_none_or(|b| score < b.score) {
+                best = Some(Blob {
+                    cx_q,
+                    cy_q,
+                    rq,
+                    score,
+                });
+            }
+        }
+        best
+    }
+
+    /// The colour's position between field (0) and ball (1), bilinear between quad centres.
+    fn alpha_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
+        if x_q < 0.0 || y_q < 0.0 {
+            return None;
+        }
+        let (ix, iy) = (x_q.floor() as usize, y_q.floor() as usize);
+        if ix + 1 >= self.qw || iy + 1 >= self.qh {
+            return None;
+        }
+        let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
+        let a = |x: usize, y: usize| self.colours.alpha(self.layout.rgb(view, x, y));
+        let top = a(ix, iy) * (1.0 - fx) + a(ix + 1, iy) * fx;
+        let bot = a(ix, iy + 1) * (1.0 - fx) + a(ix + 1, iy + 1) * fx;
+        Some(top * (1.0 - fy) + bot * fy)
+    }
+
+    fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
+        let (x, y) = (x_q.round(), y_q.round());
+        if x < 0.0 || y < 0.0 || x as usize >= self.qw || y as usize >= self.qh {
+            return false;
+        }
+        self.colours
+            .is_field(self.layout.rgb(view, x as usize, y as usize))
+    }
+
+    /// Edge points on rays from the blob's centre (an edge counts only with the field's colour
+    /// beyond it: never the border of a figure, a hand or a rod), then the sphere's centre.
+    fn fit(&mut self, view: &FrameView, blob: Blob) -> Option<Detection> {
+        let rq = blob.rq;
+        let dt = 0.25;
+        self.rays.clear();
+        self.octant.clear();
+        for i in 0..N_RAYS {
+            let [c, s] = self.dirs[i].map(|v| v as f64);
+            let mut t = 0.3 * rq;
+            let mut prev: Option<(f64, f32)> = None;
+            let mut inside = false;
+            let mut edge = None;
+            while t <= 1.8 * rq + 1.0 {
+                let (x, y) = (blob.cx_q + t * c, blob.cy_q + t * s);
+                let Some(a) = self.alpha_at(view, x, y) else {
+                    break;
+                };
+                if a >= 0.5 {
+                    inside = true;
+                } else if inside {
+                    if let Some((tp, ap)) = prev {
+                        let te = tp + (ap as f64 - 0.5) / (ap - a).max(1e-6) as f64 * dt;
+                        edge = Some(te);
+                    }
+                    break;
+                }
+                prev = Some((t, a));
+                t += dt;
+            }
+            let Some(te) = edge else {
+                continue;
+            };
+            // The field beyond the edge (two samples): not an occluder's border.
+            let ok = [1.0, 2.0].iter().all(|d| {
+                self.is_field_at(view, blob.cx_q + (te + d) * c, blob.cy_q + (te + d) * s)
+            });
+            if !ok {
+                continue;
+            }
+            let (u, v) = (
+                2.0 * (blob.cx_q + te * c) + 0.5,
+                2.0 * (blob.cy_q + te * s) + 0.5,
+            );
+            let (_, d) = self.cam.ray(u, v);
+            self.rays.push(d);
+            self.octant.push((i * 8 / N_RAYS) as u8);
+        }
+        if self.rays.len() < MIN_EDGE_POINTS {
+            return None;
+        }
+        let (o, d0) = self.cam.ray(2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
+        if d0[2].abs() < 1e-9 {
+            return None;
+        }
+        let s0 = (self.radius_mm - o[2]) / d0[2];
+        let mut c = [o[0] + s0 * d0[0], o[1] + s0 * d0[1]];
+        let mut used = vec_mask_all(self.rays.len());
+        for round in 0..2 {
+            c = self.gauss_newton(o, c, used)?;
+            self.residuals(o, c);
+            if round == 0 {
+                self.sorted.clear();
+                self.sorted.extend(self.resid.iter().map(|e| e.abs()));
+                self.sorted.sort_unstable_by(|a, b| a.total_cmp(b));
+                let sigma = 1.4826 * self.sorted[self.sorted.len() / 2];
+                let lim = (3.0 * sigma).max(1e-3 * self.radius_mm);
+                used = 0;
+                for (i, e) in self.resid.iter().enumerate() {
+                    if e.abs() <= lim && i < 64 {
+                        used |= 1u64 << i;
+                    }
+                }
+            }
+        }
+        let n = used.count_ones() as usize;
+        let mut oct = 0u8;
+        let mut ss = 0.0;
+        for i in 0..self.rays.len() {
+            if used & (1u64 << i) != 0 {
+                oct |= 1 << self.octant[i];
+                ss += self.resid[i] * self.resid[i];
+            }
+        }
+        let rms = (ss / n.max(1) as f64).sqrt();
+        if n < MIN_EDGE_POINTS
+            || (oct.count_ones() as usize) < MIN_OCTANTS
+            || rms > RESIDUAL_RATIO_MAX * self.radius_mm
+        {
+            return None;
+        }
+        let (u, v) = self.cam.project([c[0], c[1], self.radius_mm])?;
+        // The fitted centre must lie within the blob it came from.
+        let (bu, bv) = (2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
+        if ((u - bu).powi(2) + (v - bv).powi(2)).sqrt() > 2.0 * rq * 2.0 {
+            return None;
+        }
+        Some(Detection {
+            x_mm: c[0],
+            y_mm: c[1],
+            u_px: u,
+            v_px: v,
+            edge_points: n,
+            seen_fraction: n as f64 / N_RAYS as f64,
+            residual_mm: rms,
+        })
+    }
+
+    /// Signed distance of every edge ray from the sphere at `c` (z = radius), into `resid`.
+    fn residuals(&mut self, o: [f64; 3], c: [f64; 2]) {
+        self.resid.clear();
+        let w = [c[0] - o[0], c[1] - o[1], self.radius_mm - o[2]];
+        for d in &self.rays {
+            let p = crate::linalg_small::cross(w, *d);
+            self.resid
+                .push(crate::linalg_small::norm3(p) - self.radius_mm);
+        }
+    }
+
+    /// Gauss-Newton on the rays' distances from the sphere's centre, over `(x, y)`.
+    fn gauss_newton(&self, o: [f64; 3], mut c: [f64; 2], used: u64) -> Option<[f64; 2]> {
+        for _ in 0..10 {
+            let w = [c[0] - o[0], c[1] - o[1], self.radius_mm - o[2]];
+            let (mut a, mut b) = ([[0.0; 2]; 2], [0.0; 2]);
+            for (i, d) in self.rays.iter().enumerate() {
+                if used & (1u64 << i) == 0 {
+                    continue;
+                }
+                let p = crate::linalg_small::cross(w, *d);
+                let np = crate::linalg_small::norm3(p);
+                if np < 1e-12 {
+                    continue;
+                }
+                let e = np - self.radius_mm;
+                let g = crate::linalg_small::cross(*d, p.map(|v| v / np));
+                let j = [g[0], g[1]];
+                for r in 0..2 {
+                    b[r] -= j[r] * e;
+                    for k in 0..2 {
+                        a[r][k] += j[r] * j[k];
+                    }
+                }
+            }
+            let dx = crate::linalg_small::solve_dense::<2>(a, b)?;
+            c = [c[0] + dx[0], c[1] + dx[1]];
+            if dx[0].abs() + dx[1].abs() < 1e-6 {
+                break;
+            }
+        }
+        (c[0].is_finite() && c[1].is_finite()).then_some(c)
+    }
+}
+
+fn vec_mask_all(n: usize) -> u64 {
+    if n >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << n) - 1
+    }
+}

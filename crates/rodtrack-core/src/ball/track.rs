@@ -1,0 +1,186 @@
+//! Following the ball over frames: a window around the prediction, the coarse scan when that
+//! finds nothing, and a constant-velocity Kalman filter per axis for the velocity and for
+//! short occlusions.
+
+use super::detect::{BallDetector, Detection};
+use super::tuning::{ACCEL_MM_S2, GATE_SIGMAS, MEAS_SIGMA_MIN_MM, PREDICT_S};
+use super::{BallRow, BallStatus};
+use crate::calib::CameraCalibration;
+use crate::{CameraId, CoreError, FrameView, Timestamp};
+
+/// One axis of the constant-velocity filter.
+#[derive(Debug, Clone, Copy, Default)]
+struct Axis {
+    p: f64,
+    v: f64,
+    cov: [[f64; 2]; 2],
+}
+
+impl Axis {
+    fn start(p: f64, v: f64, var_p: f64, var_v: f64) -> Axis {
+        Axis {
+            p,
+            v,
+            cov: [[var_p, 0.0], [0.0, var_v]],
+        }
+    }
+
+    fn predict(&mut self, dt: f64) {
+        self.p += self.v * dt;
+        let c = self.cov;
+        let q = ACCEL_MM_S2 * ACCEL_MM_S2;
+        let p00 = c[0][0] + dt * (c[0][1] + c[1][0]) + dt * dt * c[1][1] + q * dt.powi(4) / 4.0;
+        let p01 = c[0][1] + dt * c[1][1] + q * dt.powi(3) / 2.0;
+        let p11 = c[1][1] + q * dt * dt;
+        self.cov = [[p00, p01], [p01, p11]];
+    }
+
+    /// Normalised squared innovation of `z` with measurement variance `r`.
+    fn nis(&self, z: f64, r: f64) -> f64 {
+        (z - self.p).powi(2) / (self.cov[0][0] + r)
+    }
+
+    fn update(&mut self, z: f64, r: f64) {
+        let s = self.cov[0][0] + r;
+        let k0 = self.cov[0][0] / s;
+        let k1 = self.cov[1][0] / s;
+        let e = z - self.p;
+        self.p += k0 * e;
+        self.v += k1 * e;
+        let c = self.cov;
+        self.cov = [
+            [(1.0 - k0) * c[0][0], (1.0 - k0) * c[0][1]],
+            [c[1][0] - k1 * c[0][0], c[1][1] - k1 * c[0][1]],
+        ];
+    }
+}
+
+/// A camera's ball tracker: one [`BallRow`] per frame.
+///
+/// ```no_run
+/// # fn demo(cal: &rodtrack_core::calib::CameraCalibration, view: rodtrack_core::FrameView<'_>)
+/// # -> Result<(), rodtrack_core::CoreError> {
+/// if let Some(mut ball) = rodtrack_core::ball::BallTracker::new(cal)? {
+///     let row = ball.process(&view, 0, rodtrack_core::Timestamp(0));
+///     println!("{} {:.1} {:.1} {}", row.frame, row.x_mm, row.y_mm, row.status);
+/// }
+/// # Ok(()) }
+/// ```
+#[derive(Debug, Clone)]
+pub struct BallTracker {
+    det: BallDetector,
+    camera: CameraId,
+    axes: [Axis; 2],
+    /// Time of the filter's state.
+    state_ns: Option<Timestamp>,
+    /// Time and position of the last detection.
+    last: Option<(Timestamp, [f64; 2])>,
+}
+
+impl BallTracker {
+    /// The tracker of a camera's calibration; `None` when it has no `[cameras.ball]`.
+    pub fn new(cal: &CameraCalibration) -> Result<Option<BallTracker>, CoreError> {
+        Ok(BallDetector::new(cal)?.map(|det| BallTracker {
+            det,
+            camera: CameraId::Camera(cal.index),
+            axes: [Axis::default(); 2],
+            state_ns: None,
+            last: None,
+        }))
+    }
+
+    /// The detector (its camera in the table frame, its coarse step).
+    pub fn detector(&self) -> &BallDetector {
+        &self.det
+    }
+
+    /// Tracks the ball in one frame.
+    pub fn process(&mut self, view: &FrameView, frame: u64, timestamp_ns: Timestamp) -> BallRow {
+        let live = self
+            .last
+            .is_some_and(|(t, _)| timestamp_ns.seconds_since(t) <= PREDICT_S);
+        if !live {
+            self.state_ns = None;
+            self.last = None;
+        }
+        if let Some(t) = self.state_ns {
+            let dt = timestamp_ns.seconds_since(t).max(0.0);
+            for a in &mut self.axes {
+                a.predict(dt);
+            }
+            self.state_ns = Some(timestamp_ns);
+        }
+        let around = self.state_ns.and_then(|_| {
+            self.det
+                .camera()
+                .project([self.axes[0].p, self.axes[1].p, self.det.radius_mm()])
+        });
+        let det = self.det.detect(view, around);
+        let mut row = BallRow {
+            frame,
+            timestamp_ns,
+            camera: self.camera,
+            x_mm: 0.0,
+            y_mm: 0.0,
+            vx_mm_s: 0.0,
+            vy_mm_s: 0.0,
+            quality: 0.0,
+            status: BallStatus::Lost,
+        };
+        match det {
+            Some(d) => {
+                self.update(&d, timestamp_ns);
+                row.x_mm = d.x_mm;
+                row.y_mm = d.y_mm;
+                row.vx_mm_s = self.axes[0].v;
+                row.vy_mm_s = self.axes[1].v;
+                row.quality = d.seen_fraction.clamp(0.0, 1.0);
+                row.status = BallStatus::Ok;
+            }
+            None if self.state_ns.is_some() => {
+                row.x_mm = self.axes[0].p;
+                row.y_mm = self.axes[1].p;
+                row.vx_mm_s = self.axes[0].v;
+                row.vy_mm_s = self.axes[1].v;
+                row.status = BallStatus::Predicted;
+            }
+            None => {}
+        }
+        row.sanitized()
+    }
+
+    fn update(&mut self, d: &Detection, t: Timestamp) {
+        let sigma = (d.residual_mm / (d.edge_points as f64).sqrt()).max(MEAS_SIGMA_MIN_MM);
+        let r = sigma * sigma;
+        let z = [d.x_mm, d.y_mm];
+        let gated = self.state_ns.is_some()
+            && self
+                .axes
+                .iter()
+                .zip(z)
+                .all(|(a, z)| a.nis(z, r) <= GATE_SIGMAS * GATE_SIGMAS);
+        if gated {
+            for (a, z) in self.axes.iter_mut().zip(z) {
+                a.update(z, r);
+            }
+        } else {
+            // First sight, or a kick / bounce: restart from the last detection's velocity.
+            let v = match self.last {
+                Some((t0, p0)) if t.seconds_since(t0) > 0.0 => {
+                    let dt = t.seconds_since(t0);
+                    [(z[0] - p0[0]) / dt, (z[1] - p0[1]) / dt]
+                }
+                _ => [0.0, 0.0],
+            };
+            let var_v = match self.last {
+                Some(_) => 4.0 * r / 1e-4,
+                None => 1e8,
+            };
+            for k in 0..2 {
+                self.axes[k] = Axis::start(z[k], v[k], r, var_v);
+            }
+        }
+        self.state_ns = Some(t);
+        self.last = Some((t, z));
+    }
+}

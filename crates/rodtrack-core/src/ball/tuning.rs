@@ -1,0 +1,31 @@
+//! The ball tracker's constants: geometric and statistical bounds, none fitted to a simulator
+//! or a validation set.
+
+/// Rays cast from a blob's centre to find the silhouette's edge (at most 64).
+pub const N_RAYS: usize = 48;
+/// A blob's cell count over the ball's expected image area: from a ball a quarter visible
+/// (its edge or an occluder cut it) to 1.5 times the disc (colour spill, blur).
+pub const AREA_RATIO_MIN: f64 = 0.25;
+/// See [`AREA_RATIO_MIN`].
+pub const AREA_RATIO_MAX: f64 = 1.5;
+/// A blob's extent (x or y) over the ball's expected diameter: a longer blob is not a ball.
+pub const EXTENT_RATIO_MAX: f64 = 1.25;
+/// Edge points a fit needs.
+pub const MIN_EDGE_POINTS: usize = 8;
+/// Octants of the silhouette the used edge points must cover (3 of 8: at least a quarter
+/// of the outline, which a known radius turns into a centre).
+pub const MIN_OCTANTS: usize = 3;
+/// Largest RMS distance of the edge rays from the fitted sphere, in ball radii: a worse fit
+/// is not a sphere of the ball's size.
+pub const RESIDUAL_RATIO_MAX: f64 = 0.1;
+/// Half size of the tracking window, in the ball's expected image radii.
+pub const WINDOW_RADII: f64 = 3.0;
+/// How long the filter predicts a ball it does not see before reporting it lost, s.
+pub const PREDICT_S: f64 = 0.1;
+/// White acceleration of the constant-velocity filter, mm/s^2 (about 1 g: rolling, spin and
+/// small deflections; a kick or a bounce beyond it resets the velocity).
+pub const ACCEL_MM_S2: f64 = 10_000.0;
+/// Innovation gate, standard deviations: beyond it the ball was kicked or bounced.
+pub const GATE_SIGMAS: f64 = 4.0;
+/// Floor of the measurement's standard deviation, mm.
+pub const MEAS_SIGMA_MIN_MM: f64 = 0.1;
