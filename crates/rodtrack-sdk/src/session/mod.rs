@@ -14,9 +14,10 @@
 //! - One processing stage per camera: its [`CameraPipeline::process`]; a frame that the source
 //!   could not deliver, or the tracker could not use, gives `bad_frame` rows for every rod of
 //!   that camera ([`Hooks::bad_frame`]) and the run goes on.
-//! - The temporal filter and the fusion: each camera's rows go through its [`CameraFilter`]
-//!   in its own thread, and the fusion of the measured rows ([`SetFusion`]) is the pipeline's
-//!   fusion stage. The rows are those of [`rodtrack_core::FrameSetFilter`] over each set.
+//! - The temporal filter and the fusion: each camera's rows go through its
+//!   [`rodtrack_core::CameraFilter`] in its own thread, and the fusion of the measured rows
+//!   ([`rodtrack_core::SetFusion`]) is the pipeline's fusion stage. The rows are those of
+//!   [`rodtrack_core::FrameSetFilter`] over each set.
 //! - Recordings run in [`RunMode::Batch`] (never drop, as fast as possible) with one write per
 //!   frame set, so that files are identical whatever the timing. Live sources run in
 //!   [`RunMode::Live`], each camera's thread processing the frame it read (no hand-off) and
