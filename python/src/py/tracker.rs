@@ -47,7 +47,15 @@ impl PyTracker {
         let n = cam.rods.len();
         Ok(PyTracker {
             pipe,
-            filter: filter.then(|| CameraFilter::alone(mode)),
+            // The filter of a camera the session would run: alone in a one-camera
+            // calibration, beside a fusion otherwise (its rows equal `rodtrack track`'s).
+            filter: filter.then(|| {
+                if calibration.file.cameras.len() > 1 {
+                    CameraFilter::new(mode)
+                } else {
+                    CameraFilter::alone(mode)
+                }
+            }),
             format,
             width: cam.image_width,
             height: cam.image_height,
