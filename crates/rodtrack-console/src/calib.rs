@@ -391,6 +391,10 @@ pub(crate) fn save(out: &Path, cameras: &[CalibCamera]) -> Result<Saved, Console
         for r in &mut inputs.rods {
             r.reference.frame = 0;
         }
+        // The ball's click names a frame of its own, which is not among the frames saved here
+        // (the table's points lie in the reference frame, which is): left out, the saved
+        // inputs calibrate as they are.
+        inputs.ball = None;
         let json = serde_json::to_string_pretty(&inputs).map_err(|e| ConsoleError::Serialize {
             what: "the calibration inputs",
             reason: e.to_string(),
