@@ -1,4 +1,5 @@
-//! Small fixed-size linear algebra for the table frame and the ball (no allocation).
+//! Small fixed-size linear algebra for calibration, the table frame and the ball (no
+//! allocation).
 
 /// Cross product.
 pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -12,6 +13,12 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// Euclidean norm.
 pub fn norm3(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// `a` over its norm (non-finite for a zero vector).
+pub fn normalise3(a: [f64; 3]) -> [f64; 3] {
+    let n = norm3(a);
+    a.map(|v| v / n)
 }
 
 /// Inverse of a 3x3 matrix; `None` when singular.

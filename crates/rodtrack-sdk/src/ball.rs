@@ -7,6 +7,11 @@ use rodtrack_core::calib::CalibrationFile;
 use rodtrack_io::BallSink;
 use std::sync::{Arc, Mutex};
 
+/// The most ball rows held back for a camera that has not reported their frame yet (a second
+/// of two cameras at 200 fps). A row that comes later than that is written when it comes,
+/// out of frame order, never dropped.
+const MAX_PENDING_ROWS: usize = 400;
+
 /// Counts of the ball rows a session wrote.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct BallCounts {
@@ -58,7 +63,7 @@ impl BallStage {
             trackers,
             writer: Arc::new(Mutex::new(BallWriter {
                 sink,
-                pending: Vec::with_capacity(64),
+                pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
                 last,
                 error: None,
                 counts: BallCounts::default(),
@@ -109,6 +114,12 @@ impl BallWriter {
         if let Some(f) = done {
             self.emit(f);
         }
+        // A camera that stopped reporting (gone, or its source ended) holds the others' rows
+        // back no longer than [`MAX_PENDING_ROWS`]: the oldest frame is written without it.
+        while self.pending.len() > MAX_PENDING_ROWS {
+            let oldest = self.pending[0].frame;
+            self.emit(oldest);
+        }
     }
 
     fn emit(&mut self, up_to_frame: u64) {
@@ -140,5 +151,68 @@ fn cam_key(r: &BallRow) -> u32 {
     match r.camera {
         rodtrack_core::CameraId::Camera(i) => i,
         rodtrack_core::CameraId::Fused => u32::MAX,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rodtrack_core::{CameraId, Timestamp};
+    use rodtrack_io::BallVecSink;
+
+    fn row(camera: u32, frame: u64) -> BallRow {
+        BallRow {
+            frame,
+            timestamp_ns: Timestamp(frame * 5_000_000),
+            camera: CameraId::Camera(camera),
+            x_mm: 0.0,
+            y_mm: 0.0,
+            vx_mm_s: 0.0,
+            vy_mm_s: 0.0,
+            quality: 0.0,
+            status: BallStatus::Lost,
+        }
+    }
+
+    fn writer(sink: &BallVecSink) -> BallWriter {
+        BallWriter {
+            sink: Box::new(sink.clone()),
+            pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
+            last: vec![(0, None), (1, None)],
+            error: None,
+            counts: BallCounts::default(),
+        }
+    }
+
+    /// Both cameras reporting: each frame is written once both have it, in frame and camera
+    /// order.
+    #[test]
+    fn frames_are_written_in_order_once_every_camera_has_them() {
+        let sink = BallVecSink::default();
+        let mut w = writer(&sink);
+        w.push(1, row(1, 0));
+        w.push(1, row(1, 1));
+        assert!(sink.rows().is_empty());
+        w.push(0, row(0, 0));
+        let order: Vec<(u64, CameraId)> = sink.rows().iter().map(|r| (r.frame, r.camera)).collect();
+        assert_eq!(order, [(0, CameraId::Camera(0)), (0, CameraId::Camera(1))]);
+    }
+
+    /// A camera that never reports holds the other's rows back by at most
+    /// [`MAX_PENDING_ROWS`], and the late rows are written when they come.
+    #[test]
+    fn a_silent_camera_holds_the_rows_back_a_bounded_time() {
+        let sink = BallVecSink::default();
+        let mut w = writer(&sink);
+        let n = 3 * MAX_PENDING_ROWS as u64;
+        for f in 0..n {
+            w.push(0, row(0, f));
+            assert!(w.pending.len() <= MAX_PENDING_ROWS);
+        }
+        assert_eq!(sink.rows().len() as u64, n - MAX_PENDING_ROWS as u64);
+        w.push(1, row(1, 3));
+        w.emit(u64::MAX);
+        assert_eq!(sink.rows().len() as u64, n + 1);
+        assert_eq!(w.counts.lost, n + 1);
     }
 }

@@ -5,33 +5,19 @@
 
 use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::calib::table::calibrate_table;
-use rodtrack_core::calib::{calibrate_camera, CalibrationFile, CALIBRATION_VERSION};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, FrameView, Mode};
+use rodtrack_core::calib::{CalibrationFile, CALIBRATION_VERSION};
+use rodtrack_core::{CameraIntrinsics, CameraPipeline, Mode};
 use rodtrack_io::{BallVecSink, VecSink};
 use rodtrack_sdk::{Session, SessionCamera, SessionOptions};
 use rodtrack_sim::{build_simulation, SimSource, Simulation};
 
 /// Calibrates every camera of `sim` from its simulated clicks, reference frame and ball frame.
 fn calibrate(sim: &mut Simulation, seed: u64) -> CalibrationFile {
-    let mut cameras = Vec::new();
-    for cam in 0..sim.cameras().len() {
-        let inputs = sim.calibration_inputs(cam, seed).unwrap();
-        let mut reference = vec![0u8; sim.frame_bytes(cam).unwrap()];
-        let meta = sim.render_reference(cam, &mut reference).unwrap();
-        let mut ball = vec![0u8; reference.len()];
-        let ball_frame = inputs.ball.expect("the simulator clicks the ball").frame;
-        let at = sim.ball_click_position(cam).unwrap();
-        sim.render_ball_frame(cam, at, &mut ball).unwrap();
-        let (w, h, st, f) = (meta.width, meta.height, meta.stride, meta.format);
-        let frames = [
-            (0, FrameView::new(&reference, w, h, st, f).unwrap()),
-            (ball_frame, FrameView::new(&ball, w, h, st, f).unwrap()),
-        ];
-        cameras.push(calibrate_camera(&inputs, &frames, cam as u32, 200.0).unwrap());
-    }
     CalibrationFile {
         version: CALIBRATION_VERSION,
-        cameras,
+        cameras: (0..sim.cameras().len())
+            .map(|cam| sim.calibrated_camera_with_ball(cam, seed).unwrap())
+            .collect(),
     }
 }
 

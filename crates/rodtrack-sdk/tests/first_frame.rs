@@ -5,13 +5,26 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use rodtrack_core::angle::wrap_pi;
-use rodtrack_core::{CameraPipeline, Mode, Status};
-use rodtrack_io::VecSink;
-use rodtrack_sdk::{Session, SessionCamera, SessionOptions};
+use rodtrack_core::{CameraPipeline, Measurement, Mode, Status};
+use rodtrack_io::{FrameMeta, VecSink};
+use rodtrack_sdk::{Hooks, Session, SessionCamera, SessionOptions};
 use rodtrack_sim::{build_simulation, calibrate_sim_camera, SimSource};
+use std::sync::{Arc, Mutex};
 
 const FRAMES: usize = 6;
 const TABLES: std::ops::RangeInclusive<u64> = 1..=4;
+
+/// The tracker's raw rows of frame 0 (before the filter).
+#[derive(Default)]
+struct FirstRaw(Mutex<Vec<Measurement>>);
+
+impl Hooks for FirstRaw {
+    fn measured(&self, _camera: u32, meta: &FrameMeta, rows: &[Measurement], _p: &CameraPipeline) {
+        if meta.frame_id == 0 {
+            self.0.lock().unwrap().extend_from_slice(rows);
+        }
+    }
+}
 
 /// (rods measured well on frame 0, rods ok on frame 0, ok rows of the run, wrong ok rows).
 fn table(seed: u64) -> (usize, usize, usize, Vec<String>) {
@@ -28,34 +41,16 @@ fn table(seed: u64) -> (usize, usize, usize, Vec<String>) {
         source: Box::new(source),
         pipe: CameraPipeline::new(&cal, Mode::Enhanced).unwrap(),
     };
+    let first = Arc::new(FirstRaw::default());
     let (_, sink) = Session::from_cameras(vec![camera], SessionOptions::default())
+        .with_hooks(first.clone())
         .run(VecSink::default())
         .unwrap();
     let mut raw_good = 0;
     let mut first_ok = 0;
     let mut ok = 0;
     let mut wrong = Vec::new();
-    let mut pipe = CameraPipeline::new(&cal, Mode::Enhanced).unwrap();
-    let frame0 = {
-        let mut buf = rodtrack_io::FrameBuffer::new();
-        let mut src = SimSource::for_simulation(&sim, Default::default())
-            .unwrap()
-            .into_iter()
-            .next()
-            .unwrap();
-        rodtrack_io::FrameSource::next_frame(&mut src, &mut buf)
-            .unwrap()
-            .unwrap();
-        let mut rows = Vec::new();
-        pipe.process(
-            &buf.view().unwrap(),
-            buf.meta.frame_id,
-            buf.meta.timestamp_ns,
-            &mut rows,
-        )
-        .unwrap();
-        rows
-    };
+    let frame0 = first.0.lock().unwrap().clone();
     let truth0 = sim.truth(0, 0).unwrap();
     for raw in &frame0 {
         let t = &truth0[raw.rod as usize];

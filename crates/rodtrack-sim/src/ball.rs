@@ -6,6 +6,7 @@
 use crate::geom::{Obj, WorldGeom, WorldState, V3};
 use crate::sim::{frame_time, Ctx, Simulation};
 use crate::SimError;
+use rodtrack_core::linalg_small::{cross, normalise3};
 use rodtrack_core::{Pose, Timestamp};
 
 /// One frame of the ball's truth.
@@ -86,7 +87,7 @@ impl Ctx {
         } else {
             [0.0, 1.0, 0.0]
         };
-        let e1 = normalise(cross(a, t));
+        let e1 = normalise3(cross(a, t));
         let e2 = cross(a, e1);
         let tan_half = r / (dist * dist - r * r).sqrt();
         let mut cands: Vec<Obj> = Vec::new();
@@ -108,7 +109,7 @@ impl Ctx {
                 let phi =
                     std::f64::consts::TAU * (k as f64 + 0.5 * (ring % 2) as f64) / PER_RING as f64;
                 let s = tan_half * rho;
-                let d = normalise([
+                let d = normalise3([
                     a[0] + s * (phi.cos() * e1[0] + phi.sin() * e2[0]),
                     a[1] + s * (phi.cos() * e1[1] + phi.sin() * e2[1]),
                     a[2] + s * (phi.cos() * e1[2] + phi.sin() * e2[2]),
@@ -227,6 +228,35 @@ impl Simulation {
         })
     }
 
+    /// Calibrates camera `cam` from its simulated clicks (`seed`) as `rodtrack calibrate` does
+    /// from a recording: the rods and the table frame from the reference frame, the ball's
+    /// colour from the ball frame ([`Simulation::render_ball_frame`]). For tests and benches
+    /// of the ball.
+    pub fn calibrated_camera_with_ball(
+        &mut self,
+        cam: usize,
+        seed: u64,
+    ) -> Result<rodtrack_core::calib::CameraCalibration, SimError> {
+        let inputs = self.calibration_inputs(cam, seed)?;
+        let mut reference = vec![0u8; self.frame_bytes(cam)?];
+        let meta = self.render_reference(cam, &mut reference)?;
+        let mut frames = vec![(0, reference)];
+        if let (Some(b), Some(at)) = (&inputs.ball, self.ball_click_position(cam)) {
+            let mut buf = vec![0u8; frames[0].1.len()];
+            self.render_ball_frame(cam, at, &mut buf)?;
+            frames.push((b.frame, buf));
+        }
+        let (w, h, st, f) = (meta.width, meta.height, meta.stride, meta.format);
+        let views = frames
+            .iter()
+            .map(|(i, buf)| Ok((*i, rodtrack_core::FrameView::new(buf, w, h, st, f)?)))
+            .collect::<Result<Vec<_>, SimError>>()?;
+        let fps = 1.0 / self.timestamp_s(1).max(1e-6);
+        Ok(rodtrack_core::calib::calibrate_camera(
+            &inputs, &views, cam as u32, fps,
+        )?)
+    }
+
     /// Renders camera `cam`'s ball calibration frame: every rod at its reference pose, the
     /// ball at `ball_world_mm`.
     pub fn render_ball_frame(
@@ -244,17 +274,4 @@ impl Simulation {
                 ..m
             })
     }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalise(a: [f64; 3]) -> [f64; 3] {
-    let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    a.map(|v| v / n)
 }

@@ -19,7 +19,7 @@
 //! - `sim.json`: the scene, cameras, scenario, seed and frames that made it.
 
 use crate::ball::ball_truth_header;
-use crate::sim::{CalibOptions, Simulation, TruthRow};
+use crate::sim::{CalibOptions, RenderInfo, Simulation, TruthRow};
 use crate::SimError;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
@@ -188,6 +188,17 @@ pub fn write_recording(
         } else {
             Vec::new()
         };
+        let png_fast = opts.png_fast;
+        let write_ref = |frame: u64, buf: &[u8], meta: &RenderInfo| {
+            write_png(
+                &rdir.join(format!("{frame:06}.png")),
+                buf,
+                meta.width,
+                meta.height,
+                meta.format,
+                png_fast,
+            )
+        };
         for pose in std::iter::once(None).chain(known.into_iter().map(Some)) {
             let (frame, meta) = match pose {
                 None => (0, sim.render_reference(ci, buf)?),
@@ -195,27 +206,13 @@ pub fn write_recording(
                     (frame, sim.render_known_pose(ci, rod, position_mm, buf)?)
                 }
             };
-            write_png(
-                &rdir.join(format!("{frame:06}.png")),
-                buf,
-                meta.width,
-                meta.height,
-                meta.format,
-                opts.png_fast,
-            )?;
+            write_ref(frame as u64, buf, &meta)?;
         }
         let inputs = sim.calibration_inputs_with(ci, opts.calib_seed, &opts.calib)?;
         if let Some(b) = &inputs.ball {
             if let Some(p) = sim.ctx.ball_click_position(ci) {
                 let meta = sim.render_ball_frame(ci, p, buf)?;
-                write_png(
-                    &rdir.join(format!("{:06}.png", b.frame)),
-                    buf,
-                    meta.width,
-                    meta.height,
-                    meta.format,
-                    opts.png_fast,
-                )?;
+                write_ref(b.frame as u64, buf, &meta)?;
             }
         }
         let p = out_dir.join(format!("{}.json", cam.name));

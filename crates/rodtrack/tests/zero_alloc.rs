@@ -1,10 +1,12 @@
 //! The per-frame hot path allocates nothing: a counting global allocator watches both cameras'
-//! pipelines (every rod, enhanced and paper mode) and the filter + fusion over simulated
-//! gameplay frames, after a warm-up in which the output vectors reach their size.
+//! pipelines (every rod, enhanced and paper mode), the filter + fusion and each camera's ball
+//! tracker over simulated gameplay frames (the ball rolls and is kicked among the figures),
+//! after a warm-up in which the output vectors reach their size.
 //!
 //! This file holds a single test, so no other test's allocations can be counted.
 #![allow(missing_docs, clippy::unwrap_used)]
 
+use rodtrack_core::ball::{BallStatus, BallTracker};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraPipeline, FrameSetFilter, FrameView, Mode};
 use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
@@ -69,6 +71,8 @@ struct Camera {
     frames: Vec<Vec<u8>>,
     geometry: (usize, usize, usize, rodtrack_core::PixelFormat),
     calibration: CameraCalibration,
+    /// With the table frame and the ball's colour.
+    ball_calibration: CameraCalibration,
 }
 
 fn cameras(frames: usize) -> Vec<Camera> {
@@ -80,6 +84,7 @@ fn cameras(frames: usize) -> Vec<Camera> {
     (0..sim.cameras().len())
         .map(|cam| {
             let calibration = sim.calibrated_camera(cam, 11).unwrap();
+            let ball_calibration = sim.calibrated_camera_with_ball(cam, 11).unwrap();
             let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
             let meta = sim.render_reference(cam, &mut buf).unwrap();
             let frames = (0..frames)
@@ -92,6 +97,7 @@ fn cameras(frames: usize) -> Vec<Camera> {
                 frames,
                 geometry: (meta.width, meta.height, meta.stride, meta.format),
                 calibration,
+                ball_calibration,
             }
         })
         .collect()
@@ -107,6 +113,11 @@ fn per_frame_processing_allocates_nothing() {
             .iter()
             .map(|c| CameraPipeline::new(&c.calibration, mode).unwrap())
             .collect();
+        let mut balls: Vec<BallTracker> = cams
+            .iter()
+            .map(|c| BallTracker::new(&c.ball_calibration).unwrap().unwrap())
+            .collect();
+        let mut ball_ok = 0usize;
         let mut filter = FrameSetFilter::new(mode, true);
         let mut raw = Vec::with_capacity(64);
         let mut filtered = Vec::with_capacity(64);
@@ -114,16 +125,12 @@ fn per_frame_processing_allocates_nothing() {
         let mut step = |f: usize| {
             raw.clear();
             filtered.clear();
-            for (pipe, cam) in pipes.iter_mut().zip(&cams) {
+            for ((pipe, ball), cam) in pipes.iter_mut().zip(&mut balls).zip(&cams) {
                 let (w, h, stride, fmt) = cam.geometry;
                 let view = FrameView::new(&cam.frames[f], w, h, stride, fmt).unwrap();
-                pipe.process(
-                    &view,
-                    f as u64,
-                    rodtrack_core::Timestamp::from_frame(f as u64, 200.0),
-                    &mut raw,
-                )
-                .unwrap();
+                let t = rodtrack_core::Timestamp::from_frame(f as u64, 200.0);
+                pipe.process(&view, f as u64, t, &mut raw).unwrap();
+                ball_ok += (ball.process(&view, f as u64, t).status == BallStatus::Ok) as usize;
             }
             filter.process(&raw, &mut filtered);
             ok_rows += raw
@@ -143,6 +150,11 @@ fn per_frame_processing_allocates_nothing() {
         assert!(
             ok_rows > (n * 12) * 9 / 10,
             "{mode:?}: only {ok_rows} ok rows"
+        );
+        // The ball was really followed (gameplay shows it on most frames).
+        assert!(
+            ball_ok > n / 2,
+            "{mode:?}: ball ok on {ball_ok} camera frames"
         );
         assert_eq!(
             allocations,

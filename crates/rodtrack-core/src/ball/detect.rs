@@ -374,7 +374,7 @@ impl BallDetector {
         }
         let s0 = (self.radius_mm - o[2]) / d0[2];
         let mut c = [o[0] + s0 * d0[0], o[1] + s0 * d0[1]];
-        let mut used = vec_mask_all(self.rays.len());
+        let mut used = first_bits(self.rays.len());
         for round in 0..2 {
             c = self.gauss_newton(o, c, used)?;
             self.residuals(o, c);
@@ -470,7 +470,8 @@ impl BallDetector {
     }
 }
 
-fn vec_mask_all(n: usize) -> u64 {
+/// A mask of the first `n` of 64 bits.
+fn first_bits(n: usize) -> u64 {
     if n >= 64 {
         u64::MAX
     } else {

@@ -110,7 +110,16 @@ impl BallRow {
 
     /// One CSV line (no newline).
     pub fn csv_line(&self) -> String {
-        format!(
+        let mut s = String::with_capacity(80);
+        self.push_csv(&mut s);
+        s
+    }
+
+    /// Appends [`BallRow::csv_line`] to `out` (no allocation once `out` has room).
+    pub fn push_csv(&self, out: &mut String) {
+        use std::fmt::Write;
+        let _ = write!(
+            out,
             "{},{:.6},{},{:.3},{:.3},{:.1},{:.1},{:.3},{}",
             self.frame,
             self.timestamp_s(),
@@ -121,7 +130,7 @@ impl BallRow {
             self.vy_mm_s,
             self.quality,
             self.status
-        )
+        );
     }
 
     /// Non-finite numbers replaced: the row becomes `lost` with zeros.

@@ -3,7 +3,7 @@
 //! short occlusions.
 
 use super::detect::{BallDetector, Detection};
-use super::tuning::{ACCEL_MM_S2, GATE_SIGMAS, MEAS_SIGMA_MIN_MM, PREDICT_S};
+use super::tuning::{ACCEL_MM_S2, GATE_SIGMAS, MAX_SPEED_MM_S, MEAS_SIGMA_MIN_MM, PREDICT_S};
 use super::{BallRow, BallStatus};
 use crate::calib::CameraCalibration;
 use crate::{CameraId, CoreError, FrameView, Timestamp};
@@ -96,6 +96,29 @@ impl BallTracker {
 
     /// Tracks the ball in one frame.
     pub fn process(&mut self, view: &FrameView, frame: u64, timestamp_ns: Timestamp) -> BallRow {
+        self.advance(timestamp_ns);
+        let around = self.state_ns.and_then(|_| {
+            self.det
+                .camera()
+                .project([self.axes[0].p, self.axes[1].p, self.det.radius_mm()])
+        });
+        let det = self.det.detect(view, around);
+        if let Some(d) = &det {
+            self.update(d, timestamp_ns);
+        }
+        self.row(det.as_ref(), frame, timestamp_ns)
+    }
+
+    /// The row of a frame that could not be read or used (a bad frame): the prediction while
+    /// it is trusted, else `lost`. Every frame of the camera gets a row.
+    pub fn missed(&mut self, frame: u64, timestamp_ns: Timestamp) -> BallRow {
+        self.advance(timestamp_ns);
+        self.row(None, frame, timestamp_ns)
+    }
+
+    /// Drops a track not seen for longer than the prediction is trusted, and predicts the
+    /// state to `timestamp_ns`.
+    fn advance(&mut self, timestamp_ns: Timestamp) {
         let live = self
             .last
             .is_some_and(|(t, _)| timestamp_ns.seconds_since(t) <= PREDICT_S);
@@ -110,12 +133,11 @@ impl BallTracker {
             }
             self.state_ns = Some(timestamp_ns);
         }
-        let around = self.state_ns.and_then(|_| {
-            self.det
-                .camera()
-                .project([self.axes[0].p, self.axes[1].p, self.det.radius_mm()])
-        });
-        let det = self.det.detect(view, around);
+    }
+
+    /// The row for a frame: the detection (`ok`), else the prediction (`predicted`), else
+    /// `lost`.
+    fn row(&self, det: Option<&Detection>, frame: u64, timestamp_ns: Timestamp) -> BallRow {
         let mut row = BallRow {
             frame,
             timestamp_ns,
@@ -127,21 +149,20 @@ impl BallTracker {
             quality: 0.0,
             status: BallStatus::Lost,
         };
+        if det.is_some() || self.state_ns.is_some() {
+            row.vx_mm_s = self.axes[0].v;
+            row.vy_mm_s = self.axes[1].v;
+        }
         match det {
             Some(d) => {
-                self.update(&d, timestamp_ns);
                 row.x_mm = d.x_mm;
                 row.y_mm = d.y_mm;
-                row.vx_mm_s = self.axes[0].v;
-                row.vy_mm_s = self.axes[1].v;
                 row.quality = d.seen_fraction.clamp(0.0, 1.0);
                 row.status = BallStatus::Ok;
             }
             None if self.state_ns.is_some() => {
                 row.x_mm = self.axes[0].p;
                 row.y_mm = self.axes[1].p;
-                row.vx_mm_s = self.axes[0].v;
-                row.vy_mm_s = self.axes[1].v;
                 row.status = BallStatus::Predicted;
             }
             None => {}
@@ -164,17 +185,18 @@ impl BallTracker {
                 a.update(z, r);
             }
         } else {
-            // First sight, or a kick / bounce: restart from the last detection's velocity.
-            let v = match self.last {
+            // First sight, or a kick / bounce: restart with the velocity between the last
+            // detection and this one (the difference of two positions of variance `r` each,
+            // over `dt`), or, at first sight, unknown up to the fastest shot.
+            let (v, var_v) = match self.last {
                 Some((t0, p0)) if t.seconds_since(t0) > 0.0 => {
                     let dt = t.seconds_since(t0);
-                    [(z[0] - p0[0]) / dt, (z[1] - p0[1]) / dt]
+                    (
+                        [(z[0] - p0[0]) / dt, (z[1] - p0[1]) / dt],
+                        2.0 * r / (dt * dt),
+                    )
                 }
-                _ => [0.0, 0.0],
-            };
-            let var_v = match self.last {
-                Some(_) => 4.0 * r / 1e-4,
-                None => 1e8,
+                _ => ([0.0, 0.0], MAX_SPEED_MM_S * MAX_SPEED_MM_S),
             };
             for k in 0..2 {
                 self.axes[k] = Axis::start(z[k], v[k], r, var_v);

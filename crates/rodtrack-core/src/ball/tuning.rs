@@ -29,3 +29,6 @@ pub const ACCEL_MM_S2: f64 = 10_000.0;
 pub const GATE_SIGMAS: f64 = 4.0;
 /// Floor of the measurement's standard deviation, mm.
 pub const MEAS_SIGMA_MIN_MM: f64 = 0.1;
+/// The fastest ball the filter expects at first sight, mm/s (the hardest shots,
+/// 15 m/s): the velocity's prior standard deviation before a second detection gives it.
+pub const MAX_SPEED_MM_S: f64 = 15_000.0;

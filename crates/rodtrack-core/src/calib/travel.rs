@@ -25,6 +25,7 @@
 //! the cylinder's two contour lines through the lens' distortion ([`RodAxis::half_width_px`]).
 
 use crate::camera::CameraIntrinsics;
+use crate::linalg_small::{cross, normalise3};
 
 /// The 1-D projective map from the rod's axis coordinate to the line's parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -134,7 +135,7 @@ pub fn fit_along(points: &[(f64, f64)], s_ref_mm: f64) -> Option<(AlongTravel, f
 pub fn line_plane(n0: [f64; 2], d: [f64; 2]) -> [f64; 3] {
     let a = [n0[0], n0[1], 1.0];
     let b = [d[0], d[1], 0.0];
-    normalise(cross(a, b))
+    normalise3(cross(a, b))
 }
 
 /// The 3-D direction common to parallel rods: the unit vector most nearly orthogonal to every
@@ -156,7 +157,7 @@ pub fn common_direction(planes: &[[f64; 3]]) -> Option<[f64; 3]> {
     // direction is not fixed by the rods.
     let trace = m[0][0] + m[1][1] + m[2][2];
     // Inverse iteration from the planes' mean cross product.
-    let mut x = normalise(cross(planes[0], planes[planes.len() - 1]));
+    let mut x = normalise3(cross(planes[0], planes[planes.len() - 1]));
     if !x.iter().all(|v| v.is_finite()) {
         x = [0.0, 1.0, 0.0];
     }
@@ -172,7 +173,7 @@ pub fn common_direction(planes: &[[f64; 3]]) -> Option<[f64; 3]> {
             })
             .collect();
         let y = crate::line::solve(a)?;
-        let y = normalise([y[0], y[1], y[2]]);
+        let y = normalise3([y[0], y[1], y[2]]);
         if !y.iter().all(|v| v.is_finite()) {
             return None;
         }
@@ -305,19 +306,6 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 fn dot2(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalise(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    [a[0] / n, a[1] / n, a[2] / n]
 }
 
 #[cfg(test)]

@@ -1,9 +1,10 @@
 //! Ball sinks: where [`BallRow`]s go (CSV file, memory).
 
+use super::csv::TextOut;
 use crate::IoError;
 use rodtrack_core::ball::BallRow;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -15,7 +16,9 @@ pub trait BallSink: Send {
     fn flush(&mut self) -> Result<(), IoError>;
 }
 
-/// Ball rows as CSV: [`BallRow::CSV_HEADER`], one [`BallRow::csv_line`] per row.
+/// Ball rows as CSV: [`BallRow::CSV_HEADER`], one [`BallRow::csv_line`] per row. Each `write`
+/// is flushed to the writer, as [`crate::CsvSink`] does by default: a crash loses nothing
+/// already written.
 ///
 /// ```
 /// use rodtrack_core::ball::{BallRow, BallStatus};
@@ -34,8 +37,7 @@ pub trait BallSink: Send {
 /// # Ok::<(), rodtrack_io::IoError>(())
 /// ```
 pub struct BallCsvSink<W: Write + Send> {
-    out: BufWriter<W>,
-    name: PathBuf,
+    out: TextOut<W>,
     line: String,
 }
 
@@ -51,40 +53,34 @@ impl<W: Write + Send> BallCsvSink<W> {
     /// CSV into `writer`; `name` names it in errors. Writes the header now.
     pub fn new(writer: W, name: impl Into<PathBuf>) -> Result<Self, IoError> {
         let mut s = BallCsvSink {
-            out: BufWriter::new(writer),
-            name: name.into(),
-            line: String::with_capacity(128),
+            out: TextOut::new(writer, name.into()),
+            line: String::with_capacity(1024),
         };
-        writeln!(s.out, "{}", BallRow::CSV_HEADER)
-            .map_err(|e| IoError::file(&s.name, "cannot write", e))?;
+        s.out.write_all(BallRow::CSV_HEADER.as_bytes())?;
+        s.out.write_all(b"\n")?;
+        s.out.flush()?;
         Ok(s)
     }
 
     /// Flushes and returns the writer.
     pub fn into_inner(self) -> Result<W, IoError> {
-        let name = self.name;
-        self.out
-            .into_inner()
-            .map_err(|e| IoError::file(&name, "cannot write", e.into_error()))
+        self.out.into_inner()
     }
 }
 
 impl<W: Write + Send> BallSink for BallCsvSink<W> {
     fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
+        // All rows formatted first, then one copy into the writer and one flush.
+        self.line.clear();
         for r in rows {
-            self.line.clear();
-            self.line.push_str(&r.sanitized().csv_line());
+            r.sanitized().push_csv(&mut self.line);
             self.line.push('\n');
-            self.out
-                .write_all(self.line.as_bytes())
-                .map_err(|e| IoError::file(&self.name, "cannot write", e))?;
         }
-        Ok(())
+        self.out.write_all(self.line.as_bytes())?;
+        self.out.flush()
     }
     fn flush(&mut self) -> Result<(), IoError> {
-        self.out
-            .flush()
-            .map_err(|e| IoError::file(&self.name, "cannot write", e))
+        self.out.flush()
     }
 }
 

@@ -121,19 +121,21 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
             Box::new(move |meta, frame, rows| {
                 let ts = meta.timestamp_ns;
                 let start = Instant::now();
-                let result = match frame {
-                    Ok(view) => {
-                        let r = pipe
-                            .process(&view, meta.frame_id, ts, rows)
-                            .map_err(|e| e.to_string());
-                        if let Some((tracker, writer)) = ball_cam.as_mut() {
-                            let row = tracker.process(&view, meta.frame_id, ts);
-                            if let Ok(mut w) = writer.lock() {
-                                w.push(cam_index, row);
-                            }
-                        }
-                        r
+                let view = frame.as_ref().ok();
+                if let Some((tracker, writer)) = ball_cam.as_mut() {
+                    // Every frame gets a ball row; one that could not be read, a prediction.
+                    let row = match view {
+                        Some(v) => tracker.process(v, meta.frame_id, ts),
+                        None => tracker.missed(meta.frame_id, ts),
+                    };
+                    if let Ok(mut w) = writer.lock() {
+                        w.push(cam_index, row);
                     }
+                }
+                let result = match frame {
+                    Ok(view) => pipe
+                        .process(&view, meta.frame_id, ts, rows)
+                        .map_err(|e| e.to_string()),
                     Err(e) => Err(e.to_string()),
                 };
                 match result {
@@ -217,32 +219,25 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                 list.clear();
                 list.extend_from_slice(fusion.overruled());
             }
+            let warn = |msg: String| h.warning(&msg, count.fetch_add(1, Ordering::Relaxed) + 1);
             for d in fusion.disagreements() {
-                let n = count.fetch_add(1, Ordering::Relaxed) + 1;
-                h.warning(
-                    &format!(
-                        "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
-                        d.frame,
-                        d.rod,
-                        d.cameras[0],
-                        d.cameras[1],
-                        d.position_diff_mm,
-                        d.angle_diff_rad
-                    ),
-                    n,
-                );
+                warn(format!(
+                    "frame {}: rod {}: cameras {} and {} disagree by {:.2} mm / {:.3} rad",
+                    d.frame,
+                    d.rod,
+                    d.cameras[0],
+                    d.cameras[1],
+                    d.position_diff_mm,
+                    d.angle_diff_rad
+                ));
             }
             for o in fusion.out_of_sync() {
-                let n = count.fetch_add(1, Ordering::Relaxed) + 1;
-                h.warning(
-                    &format!(
-                        "frame {}: camera {} out of sync by {:.2} ms",
-                        o.frame,
-                        o.camera,
-                        o.offset_s * 1e3
-                    ),
-                    n,
-                );
+                warn(format!(
+                    "frame {}: camera {} out of sync by {:.2} ms",
+                    o.frame,
+                    o.camera,
+                    o.offset_s * 1e3
+                ));
             }
         }));
     }
