@@ -5,7 +5,9 @@
 # calibration equals the CLI's), then measures the console's cost to the tracking (the
 # `overhead` bench: share of the tracking time, target < 2 %; printed, not enforced, since this
 # machine is shared: add `--max-percent 2` to enforce it).
-# Non-interactive, run as root (CI). About 3-4 minutes on 2 cores with a warm target dir.
+# Non-interactive, run as root (CI). Release profile, as the test step before it: the console's
+# tests and bench reuse what that step built (a debug build would compile the whole tree again).
+# The console is linted by the workspace's clippy step.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEBIAN_FRONTEND=noninteractive
@@ -20,10 +22,7 @@ else
 fi
 
 echo "== console: tests (browser required)"
-RODTRACK_REQUIRE_BROWSER=1 cargo test -p rodtrack-console -- --test-threads 1
+RODTRACK_REQUIRE_BROWSER=1 cargo test --release -p rodtrack-console -- --test-threads 1
 
 echo "== console: overhead (bench)"
 cargo bench -p rodtrack-console --bench overhead -- --runs 3
-
-echo "== console: clippy"
-cargo clippy -p rodtrack-console --all-targets --no-deps -- -D warnings
