@@ -477,8 +477,9 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         )));
     }
     let period_ns = (1e9 / fps).round() as u64;
-    // Noticed within the loss time plus the source's tick (a quarter period).
-    let loss_ns = ((options.loss_periods - 0.25).max(0.75) * period_ns as f64) as u64;
+    // Noticed within the loss time plus the source's tick (a quarter period) and the wake-up's
+    // delay: half a period of margin.
+    let loss_ns = ((options.loss_periods - 0.5).max(0.5) * period_ns as f64) as u64;
     let watch = Arc::new(Watch {
         started: Instant::now(),
         cameras: cal
