@@ -84,6 +84,7 @@ fn a_rod_with_an_unknown_turn_count_is_badged_until_reanchored_through_the_page(
         looping: true,
         every: 2,
         prerender: 16,
+        trigger_unix_ms: None,
     };
     let source = SimSource::for_simulation(&sim, playback).unwrap().remove(0);
     let camera = SessionCamera {

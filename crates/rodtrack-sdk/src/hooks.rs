@@ -42,6 +42,14 @@ pub trait Hooks: Send + Sync {
         let _ = (camera, meta, rows, pipe);
     }
 
+    /// Every frame of a camera, measured or bad: the rows the fusion takes (the raw rows of
+    /// [`Hooks::measured`], or the `bad_frame` rows of a frame that could not be measured),
+    /// in the camera's thread right after its tracker. A network node publishes them so that
+    /// a fusion node elsewhere fuses exactly what an in-process session would.
+    fn camera_rows(&self, camera: u32, meta: &FrameMeta, rows: &[Measurement]) {
+        let _ = (camera, meta, rows);
+    }
+
     /// True when [`Hooks::frame`] is to be called (asked once, when the session starts).
     fn uses_frames(&self) -> bool {
         false

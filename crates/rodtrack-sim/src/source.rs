@@ -12,6 +12,7 @@
 //! | `quality` | 0 | 1: quality rendering, as `rodtrack simulate --quality` |
 //! | `every` | 1 | `K` > 1: deliver frames `0, K, 2K, ...` only (with their ids and timestamps), as a camera at 1/K of the frame rate |
 //! | `loop` | 0 | 1: endless: frame `k` shows the scenario's frame `k % frames` (frame ids and timestamps keep counting) |
+//! | `trigger_unix_ms` | none | with `realtime=1`: frame `k` is triggered at this Unix time (ms, the system clock) plus `k / fps`, as one hardware trigger shared by every process on the machine (camera nodes of a network, see docs/network.md); a source opened after that time starts at the next trigger, with its frame id |
 //! | `prerender` | 0 | `K` > 0: render frames `0..K` when opened and deliver frame `i` with the pixels of frame `i % K` (for latency measurements: the host CPU then only copies frames, as with a camera) |
 //!
 //! The frames are byte for byte those `rodtrack simulate` writes as PNG for the same scenario,
@@ -127,6 +128,9 @@ pub struct Playback {
     pub every: usize,
     /// Render frames `0..prerender` when opened and cycle through them.
     pub prerender: usize,
+    /// With `realtime`: frame `k` is triggered at this Unix time in ms plus `k / fps` (the
+    /// system clock, shared by processes), instead of 50 ms after the first read.
+    pub trigger_unix_ms: Option<u64>,
 }
 
 impl Default for Playback {
@@ -136,6 +140,7 @@ impl Default for Playback {
             looping: false,
             every: 1,
             prerender: 0,
+            trigger_unix_ms: None,
         }
     }
 }
@@ -163,6 +168,10 @@ pub struct SimSource {
     prep: Duration,
     /// Frames rendered when opened (`prerender`), with their metadata.
     prerendered: Vec<(crate::RenderInfo, Vec<u8>)>,
+    /// The shared trigger clock (`trigger_unix_ms`), ns since the Unix epoch, and whether the
+    /// first frame (the next trigger after opening) was chosen yet.
+    trigger_unix_ns: Option<u64>,
+    trigger_started: bool,
 }
 
 /// Most bytes `prerender` may hold per source.
@@ -212,6 +221,7 @@ impl SimSource {
             "prerender",
             "every",
             "loop",
+            "trigger_unix_ms",
         ])?;
         let bad = |reason: String| IoError::BadInput {
             input: spec.input.clone(),
@@ -265,7 +275,14 @@ impl SimSource {
             looping,
             every,
             prerender: spec.param_parse("prerender")?.unwrap_or(0),
+            trigger_unix_ms: spec.param_parse("trigger_unix_ms")?,
         };
+        if how.trigger_unix_ms.is_some() && !realtime {
+            return Err(bad(
+                "parameter `trigger_unix_ms` needs `realtime=1` (it sets the real-time trigger)"
+                    .into(),
+            ));
+        }
         Self::on_shared(shared, camera, opts, how, &spec.input)
     }
 
@@ -362,6 +379,11 @@ impl SimSource {
             realtime: how.realtime,
             every: how.every,
             looping: how.looping,
+            trigger_unix_ns: how
+                .trigger_unix_ms
+                .filter(|_| how.realtime)
+                .map(|ms| ms.saturating_mul(1_000_000)),
+            trigger_started: false,
         })
     }
 
@@ -385,6 +407,13 @@ impl FrameSource for SimSource {
     }
 
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
+        if let (Some(t0), false) = (self.trigger_unix_ns, self.trigger_started) {
+            // Opened after the shared trigger started: begin at the next trigger.
+            self.trigger_started = true;
+            let late_ns = unix_now_ns().saturating_sub(t0);
+            let period_ns = 1e9 / self.fps * self.every as f64;
+            self.next = (late_ns as f64 / period_ns).ceil() as usize;
+        }
         if self.delivered_count().is_some_and(|n| self.next >= n) {
             if let Some(slot) = self.slot {
                 self.shared.delivered(slot, u64::MAX);
@@ -404,6 +433,16 @@ impl FrameSource for SimSource {
         // just before, so that the preparation does not compete for the CPU with the
         // tracking of the previous frame.
         let due = self.realtime.then(|| {
+            if let Some(t0) = self.trigger_unix_ns {
+                // The shared clock keeps the cameras in step: no gate between them.
+                let due_unix = t0 + (tick as f64 * 1e9 / self.fps).round() as u64;
+                let due =
+                    Instant::now() + Duration::from_nanos(due_unix.saturating_sub(unix_now_ns()));
+                let period = Duration::from_secs_f64(1.0 / self.fps);
+                let lead = (2 * self.prep + Duration::from_micros(200)).min(period);
+                sleep_until(due.checked_sub(lead).unwrap_or(due));
+                return due;
+            }
             self.shared.gate(self.next as u64 - 1);
             let epoch = *self
                 .shared
@@ -465,6 +504,13 @@ impl FrameSource for SimSource {
         }
         Ok(Some(()))
     }
+}
+
+/// The system clock, ns since the Unix epoch (0 before it).
+fn unix_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
 }
 
 fn sleep_until(t: Instant) {

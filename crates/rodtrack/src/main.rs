@@ -8,7 +8,9 @@ mod console;
 mod console_hooks;
 mod demo;
 mod evaluate;
+mod fuse;
 mod marker;
+mod network;
 mod score;
 mod simulate;
 mod track;
@@ -48,6 +50,8 @@ enum Command {
     Score(score::Args),
     /// Latency of the live path on the real-time simulator (frame available to row written).
     BenchLatency(bench_latency::Args),
+    /// Fusion node of a camera network: fuse the camera nodes' rows (docs/network.md).
+    Fuse(fuse::Args),
 }
 
 #[cfg(feature = "genicam")]
@@ -86,6 +90,7 @@ fn main() {
         Command::Evaluate(a) => evaluate::run(a),
         Command::BenchFrames(a) => bench_frames::run(a),
         Command::BenchLatency(a) => bench_latency::run(a),
+        Command::Fuse(a) => fuse::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

@@ -28,9 +28,9 @@ pub struct Args {
     /// `sim://SCENARIO?camera=N&frames=M&seed=S&realtime=1` (repeat for several cameras).
     #[arg(long = "input", required = true)]
     pub inputs: Vec<String>,
-    /// Output file for measurements.
+    /// Output file for measurements (optional with --publish).
     #[arg(long)]
-    pub out: PathBuf,
+    pub out: Option<PathBuf>,
     /// Output format; by default from the file extension (`.jsonl` is JSON Lines, else CSV).
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
@@ -60,6 +60,16 @@ pub struct Args {
     /// (table frame, docs/ball.md).
     #[arg(long)]
     pub ball_out: Option<PathBuf>,
+    /// Run as a camera node of a camera network: publish this camera's rows (docs/network.md).
+    #[arg(long, value_enum)]
+    pub publish: Option<crate::network::NetworkArg>,
+    /// With --publish and a calibration of several cameras: this node's camera (its name or
+    /// index in the calibration).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// The network's endpoints and table.
+    #[command(flatten)]
+    pub net: crate::network::NetArgs,
 }
 
 /// Parses `FRAME:ROD:TURNS`.
@@ -84,14 +94,69 @@ fn parse_anchor(s: &str) -> std::result::Result<rodtrack_core::TurnAnchor, Strin
     })
 }
 
+/// The camera of a camera node: the one named by `--camera` (or the calibration's only one),
+/// as a calibration of that camera alone.
+fn node_calibration(
+    cal: &rodtrack_core::calib::CalibrationFile,
+    camera: Option<&str>,
+    calib: &std::path::Path,
+) -> Result<rodtrack_core::calib::CalibrationFile> {
+    let names: Vec<String> = cal
+        .cameras
+        .iter()
+        .map(|c| format!("{} ({})", c.index, c.name))
+        .collect();
+    let cam = match camera {
+        Some(want) => cal
+            .cameras
+            .iter()
+            .find(|c| c.name == want || c.index.to_string() == want),
+        None if cal.cameras.len() == 1 => cal.cameras.first(),
+        None => bail!(
+            "{} has {} cameras: give this node's camera with --camera NAME (one of {})",
+            calib.display(),
+            cal.cameras.len(),
+            names.join(", ")
+        ),
+    };
+    let Some(cam) = cam else {
+        bail!(
+            "--camera {}: {} has no such camera (it has {})",
+            camera.unwrap_or(""),
+            calib.display(),
+            names.join(", ")
+        );
+    };
+    Ok(rodtrack_core::calib::CalibrationFile {
+        version: cal.version,
+        cameras: vec![cam.clone()],
+    })
+}
+
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    check_out_is_not_an_input(&args.out, &[&args.calib])?;
-    if let Some(b) = &args.ball_out {
-        check_out_is_not_an_input(b, &[&args.calib, &args.out])?;
+    let out = args.out.clone().unwrap_or_default();
+    match (&args.out, args.publish) {
+        (Some(out), _) => check_out_is_not_an_input(out, &[&args.calib])?,
+        (None, None) => bail!("give --out FILE for the measurements (or --publish zenoh)"),
+        (None, Some(_)) => {}
     }
-    let cal = read_calibration(&args.calib)?;
+    if let Some(b) = &args.ball_out {
+        check_out_is_not_an_input(b, &[&args.calib, &out])?;
+    }
+    let mut cal = read_calibration(&args.calib)?;
     let mode = args.mode.into();
+    if args.publish.is_some() {
+        if args.inputs.len() != 1 {
+            bail!(
+                "a camera node (--publish) tracks one camera: give one --input, got {}",
+                args.inputs.len()
+            );
+        }
+        cal = node_calibration(&cal, args.camera.as_deref(), &args.calib)?;
+    } else if args.camera.is_some() {
+        bail!("--camera selects a camera node's camera: it needs --publish zenoh");
+    }
     if args.inputs.len() != cal.cameras.len() {
         bail!(
             "{} has {} camera(s) but {} --input given: give one input per camera, in order",
@@ -100,6 +165,15 @@ pub fn run(args: Args) -> Result<()> {
             args.inputs.len()
         );
     }
+    let node = match args.publish {
+        Some(crate::network::NetworkArg::Zenoh) => {
+            let cam = &cal.cameras[0];
+            Some(crate::network::open_camera_node(
+                &args.net, &cam.name, cam.index,
+            )?)
+        }
+        None => None,
+    };
     let console = match args.console {
         Some(addr) => {
             let c = Console::start(addr, None).context("starting the web console")?;
@@ -113,6 +187,8 @@ pub fn run(args: Args) -> Result<()> {
         filter: !args.raw,
         max_frames: args.max_frames,
         turn_anchors: args.reanchor.clone(),
+        // A camera node's status goes out once a second.
+        progress_period: node.is_some().then_some(std::time::Duration::from_secs(1)),
         ..SessionOptions::default()
     };
     let mut session = Session::open(&cal, &args.inputs, options)?;
@@ -126,8 +202,22 @@ pub fn run(args: Args) -> Result<()> {
     }
     let format = args
         .format
-        .map_or_else(|| RowFormat::from_path(&args.out), RowFormat::from);
-    let sink = open_sinks(&args.out, format, args.udp.as_deref())?;
+        .map_or_else(|| RowFormat::from_path(&out), RowFormat::from);
+    let mut sink = match &args.out {
+        Some(out) => open_sinks(out, format, args.udp.as_deref())?,
+        None => {
+            let mut s = rodtrack_io::MultiSink::new();
+            if let Some(udp) = args.udp.as_deref() {
+                s.push(Box::new(
+                    rodtrack_io::UdpSink::new(udp).context("opening the UDP stream")?,
+                ));
+            }
+            s
+        }
+    };
+    if let Some(n) = &node {
+        sink.push(crate::network::node_sink(n));
+    }
     let stop = session.stop_flag();
     let sink = ConsoleRows {
         inner: sink,
@@ -144,8 +234,15 @@ pub fn run(args: Args) -> Result<()> {
         true,
         console.map(|c| ConsoleHooks::new(c, session.cameras())),
     );
-    let (report, sink) = session.with_hooks(hooks.clone()).run(sink)?;
+    let session_hooks: Arc<dyn Hooks> = match &node {
+        Some(n) => crate::network::node_hooks(n, hooks.clone()),
+        None => hooks.clone(),
+    };
+    let (report, sink) = session.with_hooks(session_hooks).run(sink)?;
     drop(sink);
+    if let Some(n) = &node {
+        crate::network::node_end(n)?;
+    }
     hooks.finish(&report);
     if report.all_bad() {
         bail!(
@@ -157,7 +254,7 @@ pub fn run(args: Args) -> Result<()> {
                 .iter()
                 .map(|c| c.frames_read)
                 .sum::<u64>(),
-            args.out.display()
+            out.display()
         );
     }
     if report.pipeline.sink_errors > 0 {
@@ -165,7 +262,7 @@ pub fn run(args: Args) -> Result<()> {
             "{} write(s) to the output failed (first: {}); rows written before are in {}",
             report.pipeline.sink_errors,
             report.pipeline.first_sink_error.as_deref().unwrap_or("?"),
-            args.out.display()
+            out.display()
         );
     }
     if let (Some(path), Some(b)) = (&args.ball_out, report.ball) {
@@ -177,10 +274,10 @@ pub fn run(args: Args) -> Result<()> {
             b.lost
         );
     }
-    if args.out.as_os_str() == "-" {
-        eprintln!("wrote standard output");
-    } else {
-        println!("wrote {}", args.out.display());
+    match &args.out {
+        Some(o) if o.as_os_str() == "-" => eprintln!("wrote standard output"),
+        Some(o) => println!("wrote {}", o.display()),
+        None => {}
     }
     Ok(())
 }

@@ -240,6 +240,7 @@ impl Grouper {
         (0..self.n).all(|c| {
             p.parts[c].is_some()
                 || self.ended[c]
+                || self.counters.cameras[c].absent.load(Ordering::Relaxed)
                 || self.latest[c].is_some_and(|l| l > p.key.saturating_add(tol))
         })
     }

@@ -36,6 +36,10 @@ pub struct CameraCounters {
     pub bad_frames: AtomicU64,
     /// Frame sets emitted without this camera's frame.
     pub missing_in_sets: AtomicU64,
+    /// Set by the caller while the camera is known to be away (e.g. a network node that
+    /// stopped sending): frame sets do not wait for its frames, as if it had ended, until it
+    /// is cleared.
+    pub absent: std::sync::atomic::AtomicBool,
 }
 
 /// Live counters of a pipeline.

@@ -157,6 +157,7 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                         h.bad_frame(&label, meta.frame_id, &msg, n);
                     }
                 }
+                h.camera_rows(cam_index, meta, rows);
             }),
         );
         if uses_frames {

@@ -1,0 +1,202 @@
+//! A camera node: one camera's SDK session publishing on the network.
+//!
+//! [`CameraNode::sink`] publishes the camera's filtered rows (what `track --out` writes) on
+//! `.../rows`; [`CameraNode::hooks`] wraps the caller's hooks and publishes the measured rows
+//! (the fusion's input, [`rodtrack_sdk::Hooks::camera_rows`]) on `.../raw` and the session's
+//! counters on `.../status` once a second; [`CameraNode::end`] says the run ended.
+
+use crate::layout::{camera_bit, Header, Kind};
+use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
+use crate::ZenohError;
+use rodtrack_core::{CameraPipeline, Measurement, Timestamp};
+use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
+use rodtrack_sdk::{Hooks, Progress};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// One camera on the network; see the module documentation.
+pub struct CameraNode {
+    // Declared before the session so that they are undeclared first.
+    rows: RowPublisher,
+    raw: RowPublisher,
+    status: RowPublisher,
+    _session: zenoh::Session,
+    table: String,
+    name: String,
+    index: u32,
+    started: Instant,
+    last_frame: AtomicU64,
+    last_timestamp_ns: AtomicU64,
+    frames_published: AtomicU64,
+    publish_errors: AtomicU64,
+}
+
+impl CameraNode {
+    /// Opens the zenoh session and declares the camera's publishers; `name` and `index` are
+    /// the camera's in the calibration.
+    pub fn open(
+        net: &NetworkOptions,
+        name: &str,
+        index: u32,
+    ) -> Result<Arc<CameraNode>, ZenohError> {
+        let table = net.table()?.to_string();
+        check_chunk("camera name", name)?;
+        let session = net.open()?;
+        let decl = |what: &str, format| {
+            RowPublisher::declare(&session, camera_key(&table, name, what), format)
+        };
+        Ok(Arc::new(CameraNode {
+            rows: decl("rows", net.format)?,
+            raw: decl("raw", net.format)?,
+            status: decl("status", crate::net::WireFormat::Json)?,
+            _session: session,
+            table,
+            name: name.to_string(),
+            index,
+            started: Instant::now(),
+            last_frame: AtomicU64::new(0),
+            last_timestamp_ns: AtomicU64::new(0),
+            frames_published: AtomicU64::new(0),
+            publish_errors: AtomicU64::new(0),
+        }))
+    }
+
+    /// The key expression of the filtered rows.
+    pub fn rows_key(&self) -> &str {
+        self.rows.key()
+    }
+
+    /// A sink that publishes the rows written to it on `.../rows`.
+    pub fn sink(self: &Arc<Self>) -> CameraRowsSink {
+        CameraRowsSink { node: self.clone() }
+    }
+
+    /// Hooks that publish the measured rows and the status, then call `inner`.
+    pub fn hooks(self: &Arc<Self>, inner: Arc<dyn Hooks>) -> Arc<CameraNodeHooks> {
+        Arc::new(CameraNodeHooks {
+            node: self.clone(),
+            inner,
+        })
+    }
+
+    /// Messages that could not be published.
+    pub fn publish_errors(&self) -> u64 {
+        self.publish_errors.load(Ordering::Relaxed)
+    }
+
+    /// Publishes the end of the run (an `end` message on `.../raw`: the fusion stops waiting
+    /// for this camera) and a last status.
+    pub fn end(&self) -> Result<(), ZenohError> {
+        let header = Header {
+            kind: Kind::End,
+            seq: 0,
+            frame: self.last_frame.load(Ordering::Relaxed),
+            timestamp_ns: Timestamp(self.last_timestamp_ns.load(Ordering::Relaxed)),
+            complete: true,
+            cameras: camera_bit(self.index),
+        };
+        self.raw.publish(header, &[])?;
+        self.status.publish_text(&self.status_json("ended", None))
+    }
+
+    fn status_json(&self, state: &str, p: Option<&Progress>) -> String {
+        let mut v = serde_json::json!({
+            "version": crate::layout::VERSION,
+            "table": self.table,
+            "camera": self.name,
+            "index": self.index,
+            "state": state,
+            "frame": self.last_frame.load(Ordering::Relaxed),
+            "timestamp_ns": self.last_timestamp_ns.load(Ordering::Relaxed),
+            "frames_published": self.frames_published.load(Ordering::Relaxed),
+            "publish_errors": self.publish_errors(),
+            "uptime_s": self.started.elapsed().as_secs_f64(),
+        });
+        if let (Some(p), Some(o)) = (p, v.as_object_mut()) {
+            let secs = p.elapsed.as_secs_f64().max(1e-9);
+            o.insert("frames".into(), p.frames.into());
+            o.insert("frames_per_s".into(), (p.frames as f64 / secs).into());
+            o.insert("dropped".into(), p.dropped.into());
+            o.insert("bad".into(), p.bad.into());
+            let us = p.tracker_time.as_secs_f64() * 1e6 / p.measured.max(1) as f64;
+            o.insert("tracker_us_per_frame".into(), us.into());
+        }
+        v.to_string()
+    }
+
+    fn count(&self, r: Result<(), ZenohError>) -> Result<(), ZenohError> {
+        if r.is_err() {
+            self.publish_errors.fetch_add(1, Ordering::Relaxed);
+        }
+        r
+    }
+}
+
+/// Publishes the rows written to it on the camera's `.../rows` (see [`CameraNode::sink`]).
+pub struct CameraRowsSink {
+    node: Arc<CameraNode>,
+}
+
+impl MeasurementSink for CameraRowsSink {
+    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
+        let n = &self.node;
+        let r = n
+            .rows
+            .publish_runs(Kind::CameraRows, true, camera_bit(n.index), rows);
+        n.count(r).map_err(|e| IoError::Net {
+            addr: n.rows.key().to_string(),
+            source: std::io::Error::other(e.to_string()),
+        })
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
+
+/// The node's hooks (see [`CameraNode::hooks`]).
+pub struct CameraNodeHooks {
+    node: Arc<CameraNode>,
+    inner: Arc<dyn Hooks>,
+}
+
+impl Hooks for CameraNodeHooks {
+    fn measured(&self, camera: u32, meta: &FrameMeta, rows: &[Measurement], pipe: &CameraPipeline) {
+        self.inner.measured(camera, meta, rows, pipe);
+    }
+    fn camera_rows(&self, camera: u32, meta: &FrameMeta, rows: &[Measurement]) {
+        let n = &self.node;
+        let header = Header {
+            kind: Kind::CameraRaw,
+            seq: 0,
+            frame: meta.frame_id,
+            timestamp_ns: meta.timestamp_ns,
+            complete: true,
+            cameras: camera_bit(n.index),
+        };
+        n.last_frame.store(meta.frame_id, Ordering::Relaxed);
+        n.last_timestamp_ns
+            .store(meta.timestamp_ns.as_nanos(), Ordering::Relaxed);
+        if n.count(n.raw.publish(header, rows)).is_ok() {
+            n.frames_published.fetch_add(1, Ordering::Relaxed);
+        }
+        self.inner.camera_rows(camera, meta, rows);
+    }
+    fn uses_frames(&self) -> bool {
+        self.inner.uses_frames()
+    }
+    fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        self.inner.frame(camera, buf);
+    }
+    fn bad_frame(&self, camera: &str, frame_id: u64, error: &str, count: u64) {
+        self.inner.bad_frame(camera, frame_id, error, count);
+    }
+    fn warning(&self, text: &str, count: u64) {
+        self.inner.warning(text, count);
+    }
+    fn progress(&self, p: &Progress) {
+        let n = &self.node;
+        let _ = n.count(n.status.publish_text(&n.status_json("running", Some(p))));
+        self.inner.progress(p);
+    }
+}

@@ -1,0 +1,133 @@
+//! `rodtrack fuse`: the fusion node of a camera network. Takes the camera nodes' measured rows
+//! from the network, fuses them as `track` fuses local cameras, writes every camera's rows and
+//! the fused rows to `--out`, and publishes the fused rows (docs/network.md).
+
+use crate::choices::{FormatArg, ModeArg};
+use crate::network::{NetArgs, NetworkArg};
+use anyhow::{bail, Result};
+use clap::ValueEnum;
+use std::path::PathBuf;
+
+/// `--group-by`: how the cameras' frames are matched into frame sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GroupArg {
+    /// Same frame id (hardware-triggered cameras).
+    FrameId,
+    /// Capture timestamps within half a frame period (cameras not triggered together).
+    Timestamp,
+}
+
+/// Arguments of `rodtrack fuse`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Calibration file (TOML) of the whole table: every camera node's camera.
+    #[arg(long)]
+    pub calib: PathBuf,
+    /// Where the camera nodes' rows come from.
+    #[arg(long, value_enum)]
+    pub subscribe: NetworkArg,
+    /// Output file: every camera's rows and the fused rows, as `track` writes them (optional
+    /// with --publish).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Output format; by default from the file extension (`.jsonl` is JSON Lines, else CSV).
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+    /// Publish the fused rows on `rodtrack/<table>/fused/rows`.
+    #[arg(long, value_enum)]
+    pub publish: Option<NetworkArg>,
+    /// Algorithm the camera nodes run (it tunes the filters): `enhanced` (default) or `paper`.
+    #[arg(long, value_enum, default_value_t = ModeArg::Enhanced)]
+    pub mode: ModeArg,
+    /// How frames are matched into sets.
+    #[arg(long, value_enum, default_value_t = GroupArg::FrameId)]
+    pub group_by: GroupArg,
+    /// A camera silent for this many frame periods, while another one sends, is lost: the
+    /// sets go on without it, marked incomplete.
+    #[arg(long, default_value_t = 3.0)]
+    pub loss_frames: f64,
+    /// The network's endpoints and table.
+    #[command(flatten)]
+    pub net: NetArgs,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> Result<()> {
+    if args.out.is_none() && args.publish.is_none() {
+        bail!("give --out FILE for the fused rows, or --publish zenoh, or both");
+    }
+    if let Some(out) = &args.out {
+        rodtrack_sdk::check_out_is_not_an_input(out, &[&args.calib])?;
+    }
+    run_node(args)
+}
+
+#[cfg(not(feature = "zenoh"))]
+fn run_node(_args: Args) -> Result<()> {
+    Err(crate::network::no_zenoh())
+}
+
+#[cfg(feature = "zenoh")]
+fn run_node(args: Args) -> Result<()> {
+    use anyhow::Context;
+    use rodtrack_sdk::{open_sinks, RowFormat};
+    use rodtrack_zenoh::fusion::{run_fusion, FusionOptions, SetGrouping};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+
+    let cal = rodtrack_sdk::read_calibration(&args.calib)?;
+    let sink = match &args.out {
+        Some(out) => {
+            let format = args
+                .format
+                .map_or_else(|| RowFormat::from_path(out), RowFormat::from);
+            open_sinks(out, format, None)?
+        }
+        None => rodtrack_io::MultiSink::new(),
+    };
+    let options = FusionOptions {
+        mode: args.mode.into(),
+        grouping: match args.group_by {
+            GroupArg::FrameId => SetGrouping::FrameId,
+            GroupArg::Timestamp => SetGrouping::Timestamp,
+        },
+        loss_periods: args.loss_frames,
+        publish: args.publish.is_some(),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    crate::track::install_ctrlc(stop.clone());
+    let net = crate::network::network_options(&args.net);
+    let table = net.table()?.to_string();
+    eprintln!(
+        "fusion of {} camera(s) on rodtrack/{table}/cam/*/raw{}; Ctrl-C to stop",
+        cal.cameras.len(),
+        if options.publish {
+            format!(", publishing rodtrack/{table}/fused/rows")
+        } else {
+            String::new()
+        }
+    );
+    let (report, sink) = run_fusion(
+        &cal,
+        &net,
+        &options,
+        sink,
+        stop,
+        Box::new(|msg: &str| eprintln!("{msg}")),
+    )
+    .context("fusion node")?;
+    drop(sink);
+    eprint!("{report}");
+    eprintln!("{}", report.pipeline);
+    if report.pipeline.sink_errors > 0 {
+        bail!(
+            "{} write(s) to the output failed (first: {})",
+            report.pipeline.sink_errors,
+            report.pipeline.first_sink_error.as_deref().unwrap_or("?")
+        );
+    }
+    if let Some(out) = &args.out {
+        println!("wrote {}", out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,440 @@
+//! The camera network on zenoh, across processes on loopback (feature `zenoh`): two camera
+//! nodes on `sim://` sources and a fusion node, each its own `rodtrack` process, on explicit
+//! `tcp/127.0.0.1` endpoints with multicast scouting off, started and stopped by the test.
+//!
+//! The simulated cameras share one trigger (`trigger_unix_ms`: the system clock), as
+//! hardware-triggered cameras share a trigger line, so that the frame ids of separate
+//! processes match and a restarted node resumes at the current frame.
+#![cfg(feature = "zenoh")]
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+use rodtrack_zenoh::layout::{decode, Kind};
+use rodtrack_zenoh::zenoh::{self, Wait};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
+/// Frames prerendered by each node (rendering on the host CPU is far slower than 200 fps).
+const PRERENDER: u32 = 20;
+/// From the nodes' start to the shared trigger's frame 0: long enough for a node to start
+/// (prerendering included) on a loaded 2-core machine.
+const START_MS: u64 = 6000;
+/// The tests start several processes each: one at a time.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run_ok(args: &[&str]) {
+    let out = Command::new(BIN).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "rodtrack {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A simulated table (exp3) and its two-camera calibration.
+fn calibration(t: &Path) -> PathBuf {
+    let rec = t.join("rec").display().to_string();
+    run_ok(&[
+        "simulate",
+        "--scenario",
+        "exp3",
+        "--frames",
+        "20",
+        "--out",
+        &rec,
+    ]);
+    let calib = t.join("c.toml");
+    run_ok(&[
+        "calibrate",
+        "--inputs",
+        &format!("{rec}/cam0.json"),
+        "--inputs",
+        &format!("{rec}/cam1.json"),
+        "--out",
+        &calib.display().to_string(),
+    ]);
+    calib
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn unix_ms() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as u64
+}
+
+/// The `sim://` input of camera `cam` on the shared trigger `t0` (or, `None`, the same frames
+/// read as fast as possible in one process).
+fn sim(cam: u32, t0: Option<u64>) -> String {
+    let base = format!("sim://exp3?camera={cam}&frames={PRERENDER}&loop=1&prerender={PRERENDER}");
+    match t0 {
+        Some(t) => format!("{base}&realtime=1&trigger_unix_ms={t}"),
+        None => base,
+    }
+}
+
+/// A process whose stderr goes to a file, killed if the test fails.
+struct Proc {
+    child: Option<Child>,
+    stderr: PathBuf,
+}
+
+impl Proc {
+    fn start(args: &[String], stderr: PathBuf) -> Proc {
+        let child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&stderr).unwrap())
+            .spawn()
+            .unwrap();
+        Proc {
+            child: Some(child),
+            stderr,
+        }
+    }
+    fn pid(&self) -> u32 {
+        self.child.as_ref().unwrap().id()
+    }
+    /// Ctrl-C, then waits (at most `limit`) for a clean end.
+    fn interrupt(&mut self, limit: Duration) -> String {
+        let st = Command::new("kill")
+            .args(["-INT", &self.pid().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success());
+        self.wait(limit)
+    }
+    /// Waits (at most `limit`) for the process to end by itself; it must succeed.
+    fn wait(&mut self, limit: Duration) -> String {
+        let mut child = self.child.take().unwrap();
+        let until = Instant::now() + limit;
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if Instant::now() > until {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!(
+                    "a rodtrack process did not end within {limit:?}:\n{}",
+                    self.log()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let log = self.log();
+        assert!(status.success(), "rodtrack ended with {status}:\n{log}");
+        log
+    }
+    /// Kills it at once (SIGKILL: a crash, nothing sent at the end).
+    fn kill(&mut self) {
+        let mut c = self.child.take().unwrap();
+        c.kill().unwrap();
+        c.wait().unwrap();
+    }
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.stderr).unwrap_or_default()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn fuse(calib: &Path, out: &Path, port: u16, log: PathBuf) -> Proc {
+    let args = [
+        "fuse",
+        "--calib",
+        &calib.display().to_string(),
+        "--subscribe",
+        "zenoh",
+        "--publish",
+        "zenoh",
+        "--out",
+        &out.display().to_string(),
+        "--zenoh-listen",
+        &format!("tcp/127.0.0.1:{port}"),
+    ]
+    .map(String::from);
+    Proc::start(&args, log)
+}
+
+fn camera_node(
+    calib: &Path,
+    cam: u32,
+    t0: u64,
+    frames: Option<u64>,
+    port: u16,
+    log: PathBuf,
+) -> Proc {
+    let mut args = [
+        "track",
+        "--calib",
+        &calib.display().to_string(),
+        "--camera",
+        &format!("cam{cam}"),
+        "--input",
+        &sim(cam, Some(t0)),
+        "--publish",
+        "zenoh",
+        "--zenoh-connect",
+        &format!("tcp/127.0.0.1:{port}"),
+    ]
+    .map(String::from)
+    .to_vec();
+    if let Some(n) = frames {
+        args.extend(["--max-frames".to_string(), n.to_string()]);
+    }
+    Proc::start(&args, log)
+}
+
+/// The CSV's lines after the header.
+fn rows(path: &Path) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(String::from)
+        .collect()
+}
+
+/// The fused messages seen by a subscriber of the test's own: (frame, complete, camera mask).
+type Seen = Arc<Mutex<Vec<(u64, bool, u64)>>>;
+
+fn subscribe_fused(port: u16) -> (zenoh::Session, Seen) {
+    let mut config = zenoh::Config::default();
+    config
+        .insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
+        .unwrap();
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(config).wait().unwrap();
+    let seen: Seen = Arc::default();
+    let s = seen.clone();
+    session
+        .declare_subscriber("rodtrack/default/fused/rows")
+        .callback(move |sample| {
+            let m = decode(&sample.payload().to_bytes()).unwrap();
+            assert_eq!(m.header.kind, Kind::Fused);
+            let mut s = s.lock().unwrap();
+            s.push((m.header.frame, m.header.complete, m.header.cameras));
+        })
+        .background()
+        .wait()
+        .unwrap();
+    (session, seen)
+}
+
+#[test]
+fn three_processes_fuse_exactly_as_the_in_process_session() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    const FRAMES: u64 = 400;
+    let t = dir("zenoh_three_processes");
+    let calib = calibration(&t);
+    let port = free_port();
+    let fused = t.join("fused.csv");
+    let mut fusion = fuse(&calib, &fused, port, t.join("fuse.err"));
+    let (_sub, seen) = subscribe_fused(port);
+    let t0 = unix_ms() + START_MS;
+    let mut nodes: Vec<Proc> = (0..2)
+        .map(|c| {
+            camera_node(
+                &calib,
+                c,
+                t0,
+                Some(FRAMES),
+                port,
+                t.join(format!("cam{c}.err")),
+            )
+        })
+        .collect();
+    let limit = Duration::from_millis(START_MS + 20_000);
+    for n in &mut nodes {
+        n.wait(limit);
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let log = fusion.interrupt(Duration::from_secs(10));
+    assert!(
+        log.contains(&format!("{FRAMES} frame sets complete, 0 incomplete")),
+        "every set complete (did a node start after the trigger?):\n{log}"
+    );
+    assert!(!log.contains("lost:"), "{log}");
+
+    // The same frames through one in-process session.
+    let reference = t.join("reference.csv");
+    let (c, r) = (calib.display().to_string(), reference.display().to_string());
+    let n = FRAMES.to_string();
+    run_ok(&[
+        "track",
+        "--calib",
+        &c,
+        "--input",
+        &sim(0, None),
+        "--input",
+        &sim(1, None),
+        "--max-frames",
+        &n,
+        "--out",
+        &r,
+    ]);
+    let (got, want) = (rows(&fused), rows(&reference));
+    let fused_rows = |v: &[String]| -> BTreeSet<String> {
+        v.iter()
+            .filter(|l| l.contains(",fused,"))
+            .cloned()
+            .collect()
+    };
+    let (gf, wf) = (fused_rows(&got), fused_rows(&want));
+    assert_eq!(wf.len() as u64, FRAMES * 8, "8 rods fused per frame");
+    assert_eq!(gf.len(), wf.len());
+    assert!(
+        gf == wf,
+        "the fused rows differ from the in-process fusion's"
+    );
+    // The camera rows too: filtered beside the fusion, overruled rows flagged, as in-process.
+    let (ga, wa): (BTreeSet<_>, BTreeSet<_>) = (got.iter().collect(), want.iter().collect());
+    assert_eq!(got.len(), want.len());
+    assert!(
+        ga == wa,
+        "the camera rows differ from the in-process session's"
+    );
+    // Every set also went out on the network, complete.
+    let seen = seen.lock().unwrap();
+    let frames: BTreeSet<u64> = seen.iter().map(|s| s.0).collect();
+    assert_eq!(frames.len() as u64, FRAMES, "fused messages of every frame");
+    assert!(seen.iter().all(|s| s.1 && s.2 == 0b11));
+}
+
+#[test]
+fn a_camera_node_killed_mid_run_is_reported_and_taken_back() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    const FRAMES: u64 = 1000;
+    let t = dir("zenoh_node_killed");
+    let calib = calibration(&t);
+    let port = free_port();
+    let fused = t.join("fused.csv");
+    let mut fusion = fuse(&calib, &fused, port, t.join("fuse.err"));
+    let (sub, seen) = subscribe_fused(port);
+    let status: Arc<Mutex<Vec<serde_json::Value>>> = Arc::default();
+    let st = status.clone();
+    sub.declare_subscriber("rodtrack/default/fused/status")
+        .callback(move |s| {
+            let v = serde_json::from_slice(&s.payload().to_bytes()).unwrap();
+            st.lock().unwrap().push(v);
+        })
+        .background()
+        .wait()
+        .unwrap();
+    let t0 = unix_ms() + START_MS;
+    let mut survivor = camera_node(&calib, 0, t0, Some(FRAMES), port, t.join("cam0.err"));
+    let mut victim = camera_node(&calib, 1, t0, None, port, t.join("cam1.err"));
+    // Killed 1.5 s into the run, restarted 0.5 s later.
+    std::thread::sleep(Duration::from_millis(t0 + 1500 - unix_ms()));
+    victim.kill();
+    std::thread::sleep(Duration::from_millis(500));
+    let mut back = camera_node(&calib, 1, t0, None, port, t.join("cam1b.err"));
+    survivor.wait(Duration::from_millis(START_MS + 20_000));
+    back.interrupt(Duration::from_secs(10));
+    std::thread::sleep(Duration::from_millis(300));
+    let log = fusion.interrupt(Duration::from_secs(10));
+
+    // The loss: noticed within 3 frame periods, reported, then the node taken back.
+    let lost = log
+        .lines()
+        .find(|l| l.contains("camera 1 (cam1) lost"))
+        .unwrap_or_else(|| panic!("no loss reported:\n{log}"));
+    let periods: f64 = lost
+        .split(" ms (")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{lost}"));
+    assert!(
+        periods <= 3.0,
+        "noticed after {periods} frame periods: {lost}"
+    );
+    let back_line = log
+        .lines()
+        .find(|l| l.contains("camera 1 (cam1) back at frame"))
+        .unwrap_or_else(|| panic!("not taken back:\n{log}"));
+    let back_frame: u64 = back_line
+        .split("back at frame ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap();
+    assert!(back_frame < FRAMES, "{back_line}");
+
+    // No row of the surviving camera lost; a fused row for every rod of every frame.
+    let got = rows(&fused);
+    let mut per_frame: BTreeMap<(String, u64), usize> = BTreeMap::new();
+    for l in &got {
+        let mut f = l.split(',');
+        let frame: u64 = f.next().unwrap().parse().unwrap();
+        let camera = f.nth(1).unwrap().to_string();
+        *per_frame.entry((camera, frame)).or_default() += 1;
+    }
+    let rods0 = *per_frame.get(&("0".to_string(), 0)).unwrap_or_else(|| {
+        panic!("no row of camera 0 at frame 0 (did it start after the trigger?):\n{log}")
+    });
+    for frame in 0..FRAMES {
+        assert_eq!(
+            per_frame.get(&("0".into(), frame)),
+            Some(&rods0),
+            "camera 0, frame {frame}"
+        );
+        // Every rod camera 0 sees is fused, whether or not camera 1 is there (the rod only
+        // camera 1 sees has no fused row while it is away, as in-process).
+        let fused = per_frame.get(&("fused".into(), frame)).copied();
+        assert!(
+            fused >= Some(rods0) && fused <= Some(8),
+            "fused, frame {frame}: {fused:?}"
+        );
+    }
+
+    // On the network: sets without camera 1 marked incomplete, complete again after the return.
+    let seen = seen.lock().unwrap();
+    let incomplete: Vec<_> = seen.iter().filter(|s| !s.1 && s.0 < FRAMES).collect();
+    assert!(!incomplete.is_empty());
+    assert!(
+        incomplete.iter().all(|s| s.2 == 0b01),
+        "camera 0 alone in incomplete sets"
+    );
+    assert!(
+        seen.iter().any(|s| s.0 > back_frame && s.1 && s.2 == 0b11),
+        "complete sets after the return at frame {back_frame}"
+    );
+    // The status reported the loss.
+    let status = status.lock().unwrap();
+    assert!(
+        status
+            .iter()
+            .any(|v| v["cameras"][1]["losses"].as_u64() >= Some(1)),
+        "{status:?}"
+    );
+}
