@@ -10,18 +10,18 @@
 //!
 //! | key | what | encoding |
 //! |---|---|---|
-//! | `rodtrack/<table>/cam/<camera>/rows` | the camera's rows through its temporal filter, one message per frame | [`layout`] (binary or JSON) |
-//! | `rodtrack/<table>/cam/<camera>/raw` | the camera's measured rows, the fusion's input; an `end` message when its run ends | [`layout`] |
+//! | `rodtrack/<table>/cam/<camera>/rows` | the camera's rows through its temporal filter, one message per frame | `layout` (binary or JSON) |
+//! | `rodtrack/<table>/cam/<camera>/raw` | the camera's measured rows, the fusion's input; an `end` message when its run ends | `layout` |
 //! | `rodtrack/<table>/cam/<camera>/status` | the camera node's counters, once a second | JSON |
-//! | `rodtrack/<table>/fused/rows` | the fused rows of each frame set, with the set's completeness | [`layout`] |
+//! | `rodtrack/<table>/fused/rows` | the fused rows of each frame set, with the set's completeness | `layout` |
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
 //!
 //! Layout:
-//! - [`layout`]: the messages (binary layout version 1 and its JSON variant), no zenoh in it;
-//! - [`net`]: the zenoh session from the command line's endpoints or a zenoh config file, the
+//! - `layout`: the messages (binary layout version 1 and its JSON variant), no zenoh in it;
+//! - `net`: the zenoh session from the command line's endpoints or a zenoh config file, the
 //!   key expressions, publishing;
-//! - [`camera`]: a camera node (a sink and hooks for an SDK `Session`);
-//! - [`fusion`]: the fusion node (the runtime pipeline over the cameras' messages, with the
+//! - `camera`: a camera node (a sink and hooks for an SDK `Session`);
+//! - `fusion`: the fusion node (the runtime pipeline over the cameras' messages, with the
 //!   same filters and fusion as an in-process session).
 
 #[cfg(feature = "zenoh")]
