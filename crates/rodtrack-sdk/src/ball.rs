@@ -2,7 +2,7 @@
 //! and the rows go, in frame order, to a [`BallSink`] ([`crate::Session::with_ball`]).
 
 use crate::SdkError;
-use rodtrack_core::ball::{BallRow, BallStatus, BallTracker};
+use rodtrack_core::ball::{BallFuser, BallRow, BallStatus, BallTracker, CameraBall};
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_io::BallSink;
 use std::sync::{Arc, Mutex};
@@ -21,6 +21,8 @@ pub struct BallCounts {
     pub predicted: u64,
     /// Rows `lost`.
     pub lost: u64,
+    /// Rows `conflict` (fused rows whose cameras disagree).
+    pub conflict: u64,
 }
 
 /// The session's ball: the trackers (taken by the cameras' threads) and the ordered writer.
@@ -30,10 +32,17 @@ pub(crate) struct BallStage {
 }
 
 /// Rows of all cameras put in frame order before they reach the sink: a frame's rows are
-/// written once every camera has reported that frame (or at the end).
+/// written once every camera has reported that frame (or at the end), followed, with
+/// several cameras, by the frame's `fused` row ([`BallFuser`]).
 pub(crate) struct BallWriter {
     sink: Box<dyn BallSink>,
-    pending: Vec<BallRow>,
+    pending: Vec<CameraBall>,
+    /// The fuser, with several cameras.
+    fuser: Option<BallFuser>,
+    /// The rows of one write (cameras' and fused), kept for its capacity.
+    out: Vec<BallRow>,
+    /// One frame's camera rows, kept for its capacity.
+    group: Vec<CameraBall>,
     last: Vec<(u32, Option<u64>)>,
     error: Option<String>,
     counts: BallCounts,
@@ -58,16 +67,11 @@ impl BallStage {
                     .into(),
             ));
         }
-        let last = trackers.iter().map(|(i, _)| (*i, None)).collect();
+        let last: Vec<(u32, Option<u64>)> = trackers.iter().map(|(i, _)| (*i, None)).collect();
+        let writer = BallWriter::new(sink, last);
         Ok(BallStage {
             trackers,
-            writer: Arc::new(Mutex::new(BallWriter {
-                sink,
-                pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
-                last,
-                error: None,
-                counts: BallCounts::default(),
-            })),
+            writer: Arc::new(Mutex::new(writer)),
         })
     }
 
@@ -97,14 +101,30 @@ impl BallStage {
 }
 
 impl BallWriter {
-    /// Takes camera `camera`'s row and writes every frame all cameras have reported.
-    pub(crate) fn push(&mut self, camera: u32, row: BallRow) {
+    /// The writer of the cameras in `last` (their indices, none reported yet).
+    fn new(sink: Box<dyn BallSink>, last: Vec<(u32, Option<u64>)>) -> BallWriter {
+        let cameras = last.len();
+        BallWriter {
+            sink,
+            pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
+            fuser: (cameras > 1).then(BallFuser::default),
+            out: Vec::with_capacity(MAX_PENDING_ROWS + 1 + (MAX_PENDING_ROWS + 1) / 2),
+            group: Vec::with_capacity(cameras),
+            last,
+            error: None,
+            counts: BallCounts::default(),
+        }
+    }
+
+    /// Takes camera `camera`'s row, with its position's standard deviation
+    /// ([`BallTracker::row_sigma_mm`]), and writes every frame all cameras have reported.
+    pub(crate) fn push(&mut self, camera: u32, row: BallRow, sigma_mm: f64) {
         let at = self
             .pending
             .iter()
-            .position(|r| (r.frame, cam_key(r)) > (row.frame, cam_key(&row)))
+            .position(|r| (r.row.frame, cam_key(&r.row)) > (row.frame, cam_key(&row)))
             .unwrap_or(self.pending.len());
-        self.pending.insert(at, row);
+        self.pending.insert(at, CameraBall { row, sigma_mm });
         for (c, l) in &mut self.last {
             if *c == camera {
                 *l = Some(row.frame);
@@ -117,7 +137,7 @@ impl BallWriter {
         // A camera that stopped reporting (gone, or its source ended) holds the others' rows
         // back no longer than [`MAX_PENDING_ROWS`]: the oldest frame is written without it.
         while self.pending.len() > MAX_PENDING_ROWS {
-            let oldest = self.pending[0].frame;
+            let oldest = self.pending[0].row.frame;
             self.emit(oldest);
         }
     }
@@ -126,20 +146,35 @@ impl BallWriter {
         let n = self
             .pending
             .iter()
-            .take_while(|r| r.frame <= up_to_frame)
+            .take_while(|r| r.row.frame <= up_to_frame)
             .count();
         if n == 0 {
             return;
         }
-        for r in &self.pending[..n] {
+        self.out.clear();
+        let mut i = 0;
+        while i < n {
+            let frame = self.pending[i].row.frame;
+            self.group.clear();
+            while i < n && self.pending[i].row.frame == frame {
+                self.out.push(self.pending[i].row);
+                self.group.push(self.pending[i]);
+                i += 1;
+            }
+            if let Some(f) = self.fuser.as_mut() {
+                self.out.push(f.fuse(&self.group));
+            }
+        }
+        for r in &self.out {
             match r.status {
                 BallStatus::Ok => self.counts.ok += 1,
                 BallStatus::Predicted => self.counts.predicted += 1,
                 BallStatus::Lost => self.counts.lost += 1,
+                BallStatus::Conflict => self.counts.conflict += 1,
             }
         }
         if self.error.is_none() {
-            if let Err(e) = self.sink.write(&self.pending[..n]) {
+            if let Err(e) = self.sink.write(&self.out) {
                 self.error = Some(e.to_string());
             }
         }
@@ -175,13 +210,7 @@ mod tests {
     }
 
     fn writer(sink: &BallVecSink) -> BallWriter {
-        BallWriter {
-            sink: Box::new(sink.clone()),
-            pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
-            last: vec![(0, None), (1, None)],
-            error: None,
-            counts: BallCounts::default(),
-        }
+        BallWriter::new(Box::new(sink.clone()), vec![(0, None), (1, None)])
     }
 
     /// Both cameras reporting: each frame is written once both have it, in frame and camera
@@ -190,12 +219,19 @@ mod tests {
     fn frames_are_written_in_order_once_every_camera_has_them() {
         let sink = BallVecSink::default();
         let mut w = writer(&sink);
-        w.push(1, row(1, 0));
-        w.push(1, row(1, 1));
+        w.push(1, row(1, 0), f64::INFINITY);
+        w.push(1, row(1, 1), f64::INFINITY);
         assert!(sink.rows().is_empty());
-        w.push(0, row(0, 0));
+        w.push(0, row(0, 0), f64::INFINITY);
         let order: Vec<(u64, CameraId)> = sink.rows().iter().map(|r| (r.frame, r.camera)).collect();
-        assert_eq!(order, [(0, CameraId::Camera(0)), (0, CameraId::Camera(1))]);
+        assert_eq!(
+            order,
+            [
+                (0, CameraId::Camera(0)),
+                (0, CameraId::Camera(1)),
+                (0, CameraId::Fused)
+            ]
+        );
     }
 
     /// A camera that never reports holds the other's rows back by at most
@@ -206,13 +242,14 @@ mod tests {
         let mut w = writer(&sink);
         let n = 3 * MAX_PENDING_ROWS as u64;
         for f in 0..n {
-            w.push(0, row(0, f));
+            w.push(0, row(0, f), f64::INFINITY);
             assert!(w.pending.len() <= MAX_PENDING_ROWS);
         }
-        assert_eq!(sink.rows().len() as u64, n - MAX_PENDING_ROWS as u64);
-        w.push(1, row(1, 3));
+        // Each frame written: camera 0's row and the fused one.
+        assert_eq!(sink.rows().len() as u64, 2 * (n - MAX_PENDING_ROWS as u64));
+        w.push(1, row(1, 3), f64::INFINITY);
         w.emit(u64::MAX);
-        assert_eq!(sink.rows().len() as u64, n + 1);
-        assert_eq!(w.counts.lost, n + 1);
+        assert_eq!(sink.rows().len() as u64, 2 * n + 2);
+        assert_eq!(w.counts.lost, 2 * n + 2);
     }
 }

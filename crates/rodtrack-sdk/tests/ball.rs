@@ -40,7 +40,10 @@ fn track_ball(sim: &Simulation, cal: &CalibrationFile) -> Vec<BallRow> {
     let (report, _) = session.run(VecSink::default()).unwrap();
     let out = rows.rows();
     let counts = report.ball.unwrap();
-    assert_eq!(counts.ok + counts.predicted + counts.lost, out.len() as u64);
+    assert_eq!(
+        counts.ok + counts.predicted + counts.lost + counts.conflict,
+        out.len() as u64
+    );
     out
 }
 
@@ -175,6 +178,77 @@ fn ball_rolling_at_up_to_2_m_s_is_measured_within_the_targets() {
             "camera {cam}: detected on {rate:.3} of the half-visible frames"
         );
     }
+    fused_within_the_targets(&sim, &rows);
+}
+
+/// The fused rows: one per frame; `ok` on every frame a camera has `ok`; error std <= 1 mm and
+/// max <= 3 mm against the truth; no conflict; and the fused track's frame-to-frame motion
+/// never departs from the truth's by more than the cameras' 3 mm bound (no hand-over jump).
+fn fused_within_the_targets(sim: &Simulation, rows: &[BallRow]) {
+    let fused: Vec<&BallRow> = rows
+        .iter()
+        .filter(|r| r.camera == rodtrack_core::CameraId::Fused)
+        .collect();
+    assert_eq!(fused.len(), sim.frame_count(), "one fused row per frame");
+    let (mut errs, mut both, mut one, mut conflict, mut missed) = (Vec::new(), 0, 0, 0, 0);
+    for f in &fused {
+        let cams_ok = rows
+            .iter()
+            .filter(|r| {
+                r.frame == f.frame
+                    && r.camera != rodtrack_core::CameraId::Fused
+                    && r.status == BallStatus::Ok
+            })
+            .count();
+        match cams_ok {
+            0 => {}
+            1 => one += 1,
+            _ => both += 1,
+        }
+        conflict += (f.status == BallStatus::Conflict) as usize;
+        if cams_ok > 0 && f.status != BallStatus::Ok {
+            missed += 1;
+        }
+        if f.status == BallStatus::Ok {
+            let t = sim.ball_truth(f.frame as usize).unwrap();
+            errs.push((f.frame, f.x_mm - t.x_mm, f.y_mm - t.y_mm));
+        }
+    }
+    let n = errs.len() as f64;
+    let (mx, my) = (
+        errs.iter().map(|e| e.1).sum::<f64>() / n,
+        errs.iter().map(|e| e.2).sum::<f64>() / n,
+    );
+    let std = (errs
+        .iter()
+        .map(|e| (e.1 - mx).powi(2) + (e.2 - my).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let max = errs.iter().map(|e| e.1.hypot(e.2)).fold(0.0, f64::max);
+    // The error's change between consecutive ok frames: a jump at a hand-over shows here.
+    let step = errs
+        .windows(2)
+        .filter(|w| w[1].0 == w[0].0 + 1)
+        .map(|w| (w[1].1 - w[0].1).hypot(w[1].2 - w[0].2))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "fused: {} ok rows ({both} frames with both cameras, {one} with one), error std {std:.2} mm, \
+         max {max:.2} mm, bias ({mx:.2}, {my:.2}) mm, largest error change between frames \
+         {step:.2} mm, {conflict} conflicts, {missed} frames a camera saw but the fused row is not ok",
+        errs.len()
+    );
+    assert!(both > 50 && one > 0, "the scenario crosses the overlap");
+    assert!(
+        std <= 1.0 && max <= 3.0,
+        "fused: std {std:.2} mm, max {max:.2} mm"
+    );
+    assert_eq!(conflict, 0, "fused conflicts on a clean scenario");
+    assert_eq!(missed, 0, "fused not ok where a camera is");
+    assert!(
+        step <= 1.5,
+        "fused error jumps by {step:.2} mm between frames"
+    );
 }
 
 #[test]

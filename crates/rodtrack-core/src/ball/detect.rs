@@ -150,6 +150,13 @@ impl BallDetector {
         &self.cam
     }
 
+    /// Millimetres on the ball's plane per pixel at the image's centre (from the expected
+    /// image radius of the ball there); `None` when the plane is not in front of the camera.
+    pub fn mm_per_px_at_centre(&self) -> Option<f64> {
+        let r = expected_radius_px(&self.cam, self.qw as f64, self.qh as f64, self.radius_mm)?;
+        (r > 0.0 && r.is_finite()).then(|| self.radius_mm / r)
+    }
+
     /// The ball's radius, mm.
     pub fn radius_mm(&self) -> f64 {
         self.radius_mm

@@ -11,10 +11,12 @@
 
 pub mod colour;
 pub mod detect;
+pub mod fuse;
 pub mod track;
 pub mod tuning;
 
 pub use detect::{BallDetector, Detection};
+pub use fuse::{BallFuser, CameraBall};
 pub use track::BallTracker;
 
 use crate::{CameraId, Timestamp};
@@ -32,15 +34,20 @@ pub enum BallStatus {
     /// Not seen for longer than the prediction is trusted (or never): `x_mm`, `y_mm` and the
     /// velocity are 0 and mean nothing.
     Lost,
+    /// `fused` rows only: cameras that see the ball disagree beyond their uncertainties and
+    /// none is better supported by the fused track; the position is the best-measured
+    /// camera's, not to be trusted.
+    Conflict,
 }
 
 impl BallStatus {
-    /// The name in files: `ok`, `predicted`, `lost`.
+    /// The name in files: `ok`, `predicted`, `lost`, `conflict`.
     pub fn name(self) -> &'static str {
         match self {
             BallStatus::Ok => "ok",
             BallStatus::Predicted => "predicted",
             BallStatus::Lost => "lost",
+            BallStatus::Conflict => "conflict",
         }
     }
 }
@@ -77,7 +84,7 @@ pub struct BallRow {
     pub frame: u64,
     /// Capture time.
     pub timestamp_ns: Timestamp,
-    /// The camera (`fused` is not made yet).
+    /// The camera, or `fused` (several cameras combined: [`BallFuser`]).
     pub camera: CameraId,
     /// Ball centre, table frame, mm.
     pub x_mm: f64,
@@ -89,7 +96,7 @@ pub struct BallRow {
     pub vy_mm_s: f64,
     /// Fraction of the ball's outline measured (0 when not measured).
     pub quality: f64,
-    /// `ok`, `predicted` or `lost`.
+    /// `ok`, `predicted`, `lost` (or `conflict`, fused rows only).
     pub status: BallStatus,
 }
 

@@ -75,18 +75,49 @@ pub struct BallTracker {
     state_ns: Option<Timestamp>,
     /// Time and position of the last detection.
     last: Option<(Timestamp, [f64; 2])>,
+    /// The camera's systematic error in the table frame, mm (its table pose's fit).
+    systematic_mm: f64,
+    /// The measurement's standard deviation of the last detection, mm.
+    meas_sigma_mm: f64,
+    /// The standard deviation of the last row's position, mm (see [`BallTracker::row_sigma_mm`]).
+    row_sigma_mm: f64,
 }
 
 impl BallTracker {
     /// The tracker of a camera's calibration; `None` when it has no `[cameras.ball]`.
     pub fn new(cal: &CameraCalibration) -> Result<Option<BallTracker>, CoreError> {
-        Ok(BallDetector::new(cal)?.map(|det| BallTracker {
-            det,
-            camera: CameraId::Camera(cal.index),
-            axes: [Axis::default(); 2],
-            state_ns: None,
-            last: None,
+        Ok(BallDetector::new(cal)?.map(|det| {
+            let systematic_mm = cal
+                .table
+                .as_ref()
+                .zip(det.mm_per_px_at_centre())
+                .map(|(t, mm_per_px)| systematic_sigma_mm(t.residual_rms_px, t.points, mm_per_px))
+                .unwrap_or(0.0);
+            BallTracker {
+                det,
+                camera: CameraId::Camera(cal.index),
+                axes: [Axis::default(); 2],
+                state_ns: None,
+                last: None,
+                systematic_mm,
+                meas_sigma_mm: 0.0,
+                row_sigma_mm: f64::INFINITY,
+            }
         }))
+    }
+
+    /// The standard deviation of the position of the row the last [`BallTracker::process`] or
+    /// [`BallTracker::missed`] returned, per axis, mm: the detection's (its edge rays'
+    /// residual over the root of their count) or the prediction's (the filter's variance),
+    /// with the camera's systematic error in the table frame added in quadrature; infinite
+    /// for a `lost` row. What fusing several cameras weighs them by.
+    pub fn row_sigma_mm(&self) -> f64 {
+        self.row_sigma_mm
+    }
+
+    /// The camera's systematic error in the table frame, mm (see [`systematic_sigma_mm`]).
+    pub fn systematic_sigma_mm(&self) -> f64 {
+        self.systematic_mm
     }
 
     /// The detector (its camera in the table frame, its coarse step).
@@ -137,7 +168,7 @@ impl BallTracker {
 
     /// The row for a frame: the detection (`ok`), else the prediction (`predicted`), else
     /// `lost`.
-    fn row(&self, det: Option<&Detection>, frame: u64, timestamp_ns: Timestamp) -> BallRow {
+    fn row(&mut self, det: Option<&Detection>, frame: u64, timestamp_ns: Timestamp) -> BallRow {
         let mut row = BallRow {
             frame,
             timestamp_ns,
@@ -159,19 +190,27 @@ impl BallTracker {
                 row.y_mm = d.y_mm;
                 row.quality = d.seen_fraction.clamp(0.0, 1.0);
                 row.status = BallStatus::Ok;
+                self.row_sigma_mm = self.meas_sigma_mm.hypot(self.systematic_mm);
             }
             None if self.state_ns.is_some() => {
                 row.x_mm = self.axes[0].p;
                 row.y_mm = self.axes[1].p;
                 row.status = BallStatus::Predicted;
+                let var = 0.5 * (self.axes[0].cov[0][0] + self.axes[1].cov[0][0]);
+                self.row_sigma_mm = var.max(0.0).sqrt().hypot(self.systematic_mm);
             }
-            None => {}
+            None => self.row_sigma_mm = f64::INFINITY,
         }
-        row.sanitized()
+        let row = row.sanitized();
+        if row.status == BallStatus::Lost || !self.row_sigma_mm.is_finite() {
+            self.row_sigma_mm = f64::INFINITY;
+        }
+        row
     }
 
     fn update(&mut self, d: &Detection, t: Timestamp) {
         let sigma = (d.residual_mm / (d.edge_points as f64).sqrt()).max(MEAS_SIGMA_MIN_MM);
+        self.meas_sigma_mm = sigma;
         let r = sigma * sigma;
         let z = [d.x_mm, d.y_mm];
         let gated = self.state_ns.is_some()
@@ -205,4 +244,24 @@ impl BallTracker {
         self.state_ns = Some(t);
         self.last = Some((t, z));
     }
+}
+
+/// A camera's systematic error in the table frame, mm: the RMS reprojection error of its
+/// table points, corrected for the degrees of freedom the pose took (`2n` coordinates, 6
+/// pose parameters: the residual underestimates the error by `sqrt(2n / (2n - 6))`), at the
+/// image's scale `mm_per_px`. With 3 points or fewer it is unknown: one pixel's worth.
+///
+/// ```
+/// use rodtrack_core::ball::track::systematic_sigma_mm;
+/// assert!((systematic_sigma_mm(0.5, 4, 0.8) - 0.8).abs() < 1e-12);
+/// assert!((systematic_sigma_mm(0.0, 3, 0.8) - 0.8).abs() < 1e-12);
+/// ```
+pub fn systematic_sigma_mm(residual_rms_px: f64, points: usize, mm_per_px: f64) -> f64 {
+    let n2 = 2.0 * points as f64;
+    let px = if points > 3 && residual_rms_px.is_finite() {
+        residual_rms_px * (n2 / (n2 - 6.0)).sqrt()
+    } else {
+        1.0
+    };
+    (px * mm_per_px).max(0.0)
 }

@@ -128,8 +128,9 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                         Some(v) => tracker.process(v, meta.frame_id, ts),
                         None => tracker.missed(meta.frame_id, ts),
                     };
+                    let sigma_mm = tracker.row_sigma_mm();
                     if let Ok(mut w) = writer.lock() {
-                        w.push(cam_index, row);
+                        w.push(cam_index, row, sigma_mm);
                     }
                 }
                 let result = match frame {
