@@ -108,7 +108,7 @@ impl BallWriter {
             sink,
             pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
             fuser: (cameras > 1).then(BallFuser::default),
-            out: Vec::with_capacity(MAX_PENDING_ROWS + 1 + (MAX_PENDING_ROWS + 1) / 2),
+            out: Vec::with_capacity(MAX_PENDING_ROWS + 1 + MAX_PENDING_ROWS.div_ceil(2)),
             group: Vec::with_capacity(cameras),
             last,
             error: None,
