@@ -276,5 +276,6 @@ fn hands_and_figures_without_a_ball_give_no_detection() {
         "false detections: {:?}",
         &found[..found.len().min(5)]
     );
-    assert_eq!(rows.len(), 2 * frames);
+    // One row per camera and frame, and the fused row of each frame.
+    assert_eq!(rows.len(), 3 * frames);
 }
