@@ -80,6 +80,14 @@ pub enum CameraState {
 }
 
 impl CameraState {
+    fn code(self) -> u8 {
+        match self {
+            CameraState::Waiting => 0,
+            CameraState::Ok => 1,
+            CameraState::Lost => 2,
+            CameraState::Ended => 3,
+        }
+    }
     fn from_code(c: u8) -> CameraState {
         match c {
             1 => CameraState::Ok,
@@ -122,6 +130,9 @@ impl CameraWatch {
     fn state(&self) -> CameraState {
         CameraState::from_code(self.state.load(Ordering::Relaxed))
     }
+    fn set_state(&self, s: CameraState) {
+        self.state.store(s.code(), Ordering::Relaxed);
+    }
 }
 
 /// What the node's threads share.
@@ -132,6 +143,9 @@ struct Watch {
     first_any_ns: AtomicU64,
     loss_ns: u64,
     period_ns: u64,
+    /// How far another camera's grouping key must be past a camera's last one to count as a
+    /// newer frame: 0 by frame id, half a period by timestamp (the same frame's window).
+    key_slack: u64,
     log: Box<dyn Fn(&str) + Send + Sync>,
     counters: OnceLock<Arc<PipelineCounters>>,
 }
@@ -148,7 +162,9 @@ impl Watch {
     }
 
     /// Marks camera `pos` lost when it has been silent for the loss time while another
-    /// camera sent within it.
+    /// camera sent within it, frames newer than its own last one: the frame sets are then
+    /// waiting for it. (A camera whose run ends with the others', its `end` message still on
+    /// its way, is not lost: nobody has gone past its last frame.)
     fn check_loss(&self, pos: usize) {
         let me = &self.cameras[pos];
         if !matches!(me.state(), CameraState::Ok | CameraState::Waiting) {
@@ -167,15 +183,19 @@ impl Watch {
         if silent < self.loss_ns {
             return;
         }
+        let seen_any = me.last_seen_ns.load(Ordering::Relaxed) != 0;
+        let mine = me.last_key.load(Ordering::Relaxed);
         let others = self.cameras.iter().enumerate().any(|(i, c)| {
             i != pos
                 && c.state() == CameraState::Ok
                 && now.saturating_sub(c.last_seen_ns.load(Ordering::Relaxed)) < self.loss_ns
+                && (!seen_any
+                    || c.last_key.load(Ordering::Relaxed) > mine.saturating_add(self.key_slack))
         });
         if !others {
             return;
         }
-        me.state.store(2, Ordering::Relaxed);
+        me.set_state(CameraState::Lost);
         me.losses.fetch_add(1, Ordering::Relaxed);
         self.set_absent(pos, true);
         (self.log)(&format!(
@@ -246,7 +266,7 @@ impl RowSource {
             me.frames_missed.fetch_add(missed, Ordering::Relaxed);
         }
         me.returns.fetch_add(1, Ordering::Relaxed);
-        me.state.store(1, Ordering::Relaxed);
+        me.set_state(CameraState::Ok);
         self.watch.set_absent(self.pos, false);
         (self.watch.log)(&format!(
             "fusion: camera {} ({}) back at frame {} after being {} ({} frame(s) missed); frame sets are complete again",
@@ -296,7 +316,7 @@ impl FrameSource for RowSource {
             me.last_seen_ns.store(now, Ordering::Relaxed);
             if m.header.kind == Kind::End {
                 if me.state() != CameraState::Ended {
-                    me.state.store(3, Ordering::Relaxed);
+                    me.set_state(CameraState::Ended);
                     w.set_absent(self.pos, true);
                     (w.log)(&format!(
                         "fusion: camera {} ({}) ended its run after frame {}; frame sets go on without it",
@@ -311,7 +331,7 @@ impl FrameSource for RowSource {
                         continue;
                     }
                 }
-                CameraState::Waiting => me.state.store(1, Ordering::Relaxed),
+                CameraState::Waiting => me.set_state(CameraState::Ok),
                 CameraState::Ok => {}
             }
             me.last_key.store(self.key(&m.header), Ordering::Relaxed);
@@ -488,7 +508,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
             .map(|c| CameraWatch {
                 name: c.name.clone(),
                 index: c.index,
-                state: AtomicU8::new(0),
+                state: AtomicU8::new(CameraState::Waiting.code()),
                 last_seen_ns: AtomicU64::new(0),
                 last_key: AtomicU64::new(0),
                 last_frame: AtomicU64::new(0),
@@ -501,6 +521,10 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         first_any_ns: AtomicU64::new(0),
         loss_ns,
         period_ns,
+        key_slack: match options.grouping {
+            SetGrouping::FrameId => 0,
+            SetGrouping::Timestamp => period_ns / 2,
+        },
         log,
         counters: OnceLock::new(),
     });
