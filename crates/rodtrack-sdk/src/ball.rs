@@ -196,17 +196,11 @@ mod tests {
     use rodtrack_io::BallVecSink;
 
     fn row(camera: u32, frame: u64) -> BallRow {
-        BallRow {
+        BallRow::lost(
             frame,
-            timestamp_ns: Timestamp(frame * 5_000_000),
-            camera: CameraId::Camera(camera),
-            x_mm: 0.0,
-            y_mm: 0.0,
-            vx_mm_s: 0.0,
-            vy_mm_s: 0.0,
-            quality: 0.0,
-            status: BallStatus::Lost,
-        }
+            Timestamp(frame * 5_000_000),
+            CameraId::Camera(camera),
+        )
     }
 
     fn writer(sink: &BallVecSink) -> BallWriter {

@@ -406,16 +406,19 @@ fn decode_json(b: &[u8]) -> Result<Message, ZenohError> {
             turns_known: r.turns_known,
         });
     }
+    let header = Header {
+        kind,
+        seq: m.seq,
+        frame: m.frame,
+        timestamp_ns: Timestamp(m.timestamp_ns),
+        complete: m.complete,
+        cameras,
+    };
+    // As in the binary layout, every row is of the header's frame.
+    check_rows(&header, &rows)?;
     Ok(Message {
         version: m.version,
-        header: Header {
-            kind,
-            seq: m.seq,
-            frame: m.frame,
-            timestamp_ns: Timestamp(m.timestamp_ns),
-            complete: m.complete,
-            cameras,
-        },
+        header,
         rows,
     })
 }
@@ -489,6 +492,11 @@ mod tests {
         v[HEADER_BYTES + 8..HEADER_BYTES + 16].copy_from_slice(&f64::NAN.to_le_bytes());
         assert!(msg(&v).contains("finite"));
         assert!(msg(b"{\"version\":1}").contains("JSON"));
+        let mut json = Vec::new();
+        encode_json(&header(), &rows(), &mut json).unwrap();
+        let mut v: serde_json::Value = serde_json::from_slice(&json).unwrap();
+        v["rows"][1]["frame"] = 41.into();
+        assert!(msg(v.to_string().as_bytes()).contains("frame 41"));
         let mut other = rows();
         other[1].frame = 43;
         assert!(encode(&header(), &other, &mut out)

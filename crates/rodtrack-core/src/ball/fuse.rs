@@ -80,17 +80,7 @@ impl BallFuser {
             .first()
             .map(|c| (c.row.frame, c.row.timestamp_ns))
             .unwrap_or((0, Timestamp(0)));
-        let mut out = BallRow {
-            frame,
-            timestamp_ns,
-            camera: CameraId::Fused,
-            x_mm: 0.0,
-            y_mm: 0.0,
-            vx_mm_s: 0.0,
-            vy_mm_s: 0.0,
-            quality: 0.0,
-            status: BallStatus::Lost,
-        };
+        let mut out = BallRow::lost(frame, timestamp_ns, CameraId::Fused);
         let usable = |c: &CameraBall, s: BallStatus| {
             c.row.status == s && c.sigma_mm.is_finite() && c.sigma_mm > 0.0
         };
@@ -107,18 +97,8 @@ impl BallFuser {
             self.offset_mm = [0.0; 2];
             return out;
         }
-        let (mean, sigma) = weighted(cams, set);
-        let mut v = [0.0; 2];
-        let mut wsum = 0.0;
-        for (i, c) in cams.iter().enumerate() {
-            if set & (1 << i) != 0 {
-                let w = 1.0 / (c.sigma_mm * c.sigma_mm);
-                v[0] += w * c.row.vx_mm_s;
-                v[1] += w * c.row.vy_mm_s;
-                wsum += w;
-            }
-        }
-        v = v.map(|x| x / wsum);
+        let (m, sigma) = weighted(cams, set);
+        let (mean, v) = ([m[0], m[1]], [m[2], m[3]]);
         out.quality = cams
             .iter()
             .enumerate()
@@ -227,21 +207,24 @@ fn agree(a: &CameraBall, b: &CameraBall) -> bool {
     d <= AGREE_SIGMAS * a.sigma_mm.hypot(b.sigma_mm)
 }
 
-/// The inverse-variance weighted mean of the cameras in `set` and its standard deviation.
-fn weighted(cams: &[CameraBall], set: u64) -> ([f64; 2], f64) {
-    let (mut m, mut wsum) = ([0.0; 2], 0.0);
+/// The inverse-variance weighted mean of the cameras in `set` (x, y, vx, vy) and the
+/// position's standard deviation.
+fn weighted(cams: &[CameraBall], set: u64) -> ([f64; 4], f64) {
+    let (mut m, mut wsum) = ([0.0; 4], 0.0);
     for (i, c) in cams.iter().enumerate() {
         if set & (1 << i) != 0 {
             let w = 1.0 / (c.sigma_mm * c.sigma_mm);
-            m[0] += w * c.row.x_mm;
-            m[1] += w * c.row.y_mm;
+            let r = &c.row;
+            for (acc, v) in m.iter_mut().zip([r.x_mm, r.y_mm, r.vx_mm_s, r.vy_mm_s]) {
+                *acc += w * v;
+            }
             wsum += w;
         }
     }
     if wsum > 0.0 {
-        ([m[0] / wsum, m[1] / wsum], (1.0 / wsum).sqrt())
+        (m.map(|x| x / wsum), (1.0 / wsum).sqrt())
     } else {
-        ([0.0; 2], f64::INFINITY)
+        ([0.0; 4], f64::INFINITY)
     }
 }
 

@@ -105,6 +105,21 @@ impl BallRow {
     pub const CSV_HEADER: &'static str =
         "frame,timestamp_s,camera,x_mm,y_mm,vx_mm_s,vy_mm_s,quality,status";
 
+    /// A `lost` row of `camera` for a frame: no position, no velocity, quality 0.
+    pub fn lost(frame: u64, timestamp_ns: Timestamp, camera: CameraId) -> BallRow {
+        BallRow {
+            frame,
+            timestamp_ns,
+            camera,
+            x_mm: 0.0,
+            y_mm: 0.0,
+            vx_mm_s: 0.0,
+            vy_mm_s: 0.0,
+            quality: 0.0,
+            status: BallStatus::Lost,
+        }
+    }
+
     /// Capture time, s (for printing).
     pub fn timestamp_s(&self) -> f64 {
         self.timestamp_ns.as_secs_f64()

@@ -169,17 +169,7 @@ impl BallTracker {
     /// The row for a frame: the detection (`ok`), else the prediction (`predicted`), else
     /// `lost`.
     fn row(&mut self, det: Option<&Detection>, frame: u64, timestamp_ns: Timestamp) -> BallRow {
-        let mut row = BallRow {
-            frame,
-            timestamp_ns,
-            camera: self.camera,
-            x_mm: 0.0,
-            y_mm: 0.0,
-            vx_mm_s: 0.0,
-            vy_mm_s: 0.0,
-            quality: 0.0,
-            status: BallStatus::Lost,
-        };
+        let mut row = BallRow::lost(frame, timestamp_ns, self.camera);
         if det.is_some() || self.state_ns.is_some() {
             row.vx_mm_s = self.axes[0].v;
             row.vy_mm_s = self.axes[1].v;
