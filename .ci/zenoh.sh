@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The camera network (feature `zenoh`) and the binary with every optional feature: lints the
+# binary and rodtrack-zenoh with `video`, `genicam` and `zenoh` on (one feature set, built
+# once), runs rodtrack-zenoh's unit tests and the network test: real `rodtrack` processes on
+# loopback (two camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
+# endpoints, multicast scouting off; a camera node killed and restarted), bounded in time.
+# Runs after .ci/video.sh and .ci/genicam.sh (their system packages are installed).
+# Non-interactive, run as root (CI).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export CARGO_TERM_COLOR=never
+features=rodtrack/video,rodtrack/genicam,rodtrack/zenoh
+
+echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
+cargo clippy -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
+
+echo "== zenoh: unit tests and the three-process network test (loopback)"
+timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
+    --lib --test zenoh_network -- --test-threads=1
+
+echo "== zenoh: the binary with every feature"
+cargo build --release -p rodtrack --features video,genicam,zenoh
+target/release/rodtrack fuse --help | head -3
