@@ -27,7 +27,7 @@
 
 use crate::ZenohError;
 use rodtrack_core::{CameraId, Measurement, Status, Timestamp};
-use rodtrack_io::sink::{status_code, status_from_code};
+use rodtrack_io::sink::{push_row_motion, status_code, status_from_code, UDP_CAMERA_FUSED};
 
 /// Message magic.
 pub const MAGIC: [u8; 4] = *b"RTZN";
@@ -42,7 +42,7 @@ pub const FLAG_COMPLETE: u8 = 1;
 /// Row flag: `turns_known`.
 pub const ROW_FLAG_TURNS_KNOWN: u8 = 1;
 /// Camera value meaning "fused".
-pub const CAMERA_FUSED: u32 = u32::MAX;
+pub const CAMERA_FUSED: u32 = UDP_CAMERA_FUSED;
 /// Most rows in one message.
 pub const MAX_ROWS: usize = u16::MAX as usize;
 
@@ -141,22 +141,9 @@ pub fn encode(header: &Header, rows: &[Measurement], out: &mut Vec<u8>) -> Resul
     out.extend_from_slice(&header.cameras.to_le_bytes());
     for r in rows {
         let r = r.sanitized();
-        let cam = match r.camera {
-            CameraId::Camera(c) => c,
-            CameraId::Fused => CAMERA_FUSED,
-        };
-        out.extend_from_slice(&cam.to_le_bytes());
-        out.extend_from_slice(&r.rod.to_le_bytes());
-        for v in [
-            r.position_mm,
-            r.angle_rad,
-            r.angle_unwrapped_rad,
-            r.velocity_mm_s,
-            r.angular_velocity_rad_s,
-            r.quality,
-        ] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
+        // The UDP layout's first 48 bytes (its fused camera is ours), then the full quality.
+        push_row_motion(&r, out);
+        out.extend_from_slice(&r.quality.to_le_bytes());
         let flags = if r.turns_known {
             ROW_FLAG_TURNS_KNOWN
         } else {

@@ -15,9 +15,9 @@ pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
 pub use ball::{BallCsvSink, BallSink, BallVecSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
-    decode_udp_packet, encode_udp_packet, status_code, status_from_code, UdpPacket, UdpSink,
-    UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_FLAG_TURNS_KNOWN, UDP_HEADER_BYTES, UDP_MAGIC,
-    UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
+    decode_udp_packet, encode_udp_packet, push_row_motion, status_code, status_from_code,
+    UdpPacket, UdpSink, UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_FLAG_TURNS_KNOWN, UDP_HEADER_BYTES,
+    UDP_MAGIC, UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
 };
 
 use crate::IoError;

@@ -96,6 +96,28 @@ pub struct UdpPacket {
     pub rows: Vec<Measurement>,
 }
 
+/// Appends the first 48 bytes of a row that the UDP layout and the network's layout share:
+/// camera u32 ([`UDP_CAMERA_FUSED`] for fused), rod u32, then f64 `position_mm`, `angle_rad`,
+/// `angle_unwrapped_rad`, `velocity_mm_s`, `angular_velocity_rad_s`, little endian. `r` is
+/// expected sanitized.
+pub fn push_row_motion(r: &Measurement, out: &mut Vec<u8>) {
+    let cam = match r.camera {
+        CameraId::Camera(c) => c,
+        CameraId::Fused => UDP_CAMERA_FUSED,
+    };
+    out.extend_from_slice(&cam.to_le_bytes());
+    out.extend_from_slice(&r.rod.to_le_bytes());
+    for v in [
+        r.position_mm,
+        r.angle_rad,
+        r.angle_unwrapped_rad,
+        r.velocity_mm_s,
+        r.angular_velocity_rad_s,
+    ] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
 /// Encodes rows of one frame set into `out` (cleared first). Frame id and timestamp come from
 /// the first row. Values are sanitized. Fails on more than [`UDP_MAX_ROWS`] rows.
 pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> Result<(), IoError> {
@@ -122,21 +144,7 @@ pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> R
     out.extend_from_slice(&ts.to_le_bytes());
     for r in rows {
         let r = r.sanitized();
-        let cam = match r.camera {
-            CameraId::Camera(c) => c,
-            CameraId::Fused => UDP_CAMERA_FUSED,
-        };
-        out.extend_from_slice(&cam.to_le_bytes());
-        out.extend_from_slice(&r.rod.to_le_bytes());
-        for v in [
-            r.position_mm,
-            r.angle_rad,
-            r.angle_unwrapped_rad,
-            r.velocity_mm_s,
-            r.angular_velocity_rad_s,
-        ] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
+        push_row_motion(&r, out);
         out.extend_from_slice(&(r.quality as f32).to_le_bytes());
         let flags = if r.turns_known {
             UDP_FLAG_TURNS_KNOWN
