@@ -1,7 +1,7 @@
 //! Fuzzing of every parser of outside data, without nightly: random byte strings and mutations
 //! of valid seeds (flipped bytes, cut, repeated or inserted runs, numbers replaced by huge,
 //! negative or non-finite ones), generated from proptest's RNG. Each target runs for
-//! `RODTRACK_FUZZ_SECS` seconds (default 2; CI runs 12), seeded by `RODTRACK_FUZZ_SEED`
+//! `RODTRACK_FUZZ_SECS` seconds (default 2; CI runs 6), seeded by `RODTRACK_FUZZ_SEED`
 //! (default fixed, so a failure reproduces). A case fails on a panic, and on an allocation
 //! over [`CAP`] or a total live over [`CAP`] (a counting global allocator; one allocation
 //! above the cap is refused, which aborts the test binary with the allocation size).
