@@ -279,3 +279,53 @@ fn hands_and_figures_without_a_ball_give_no_detection() {
     // One row per camera and frame, and the fused row of each frame.
     assert_eq!(rows.len(), 3 * frames);
 }
+
+/// The detector's fast path (specks rejected before their ray, each quad's colour computed
+/// once per fit) gives exactly the plain reference's detections: over the ball scenario on
+/// tables as built, by the coarse scan of the whole image and by the window around the last
+/// detection, and in the hands scenario (no ball, many specks).
+#[test]
+fn fast_ball_detection_equals_the_plain_reference() {
+    use rodtrack_core::ball::BallDetector;
+    use rodtrack_core::FrameView;
+    let mut compared = (0usize, 0usize);
+    for (scenario, seed, setup) in [
+        ("ball", 1, "asbuilt:1"),
+        ("ball", 2, "asbuilt:2"),
+        ("hands", 5, "default"),
+    ] {
+        let frames = 40;
+        let mut sim = build_simulation(scenario, Some(frames), seed, false, setup).unwrap();
+        for cam in 0..sim.cameras().len() {
+            let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
+            let mut fast = BallDetector::new(&cal).unwrap().unwrap();
+            let mut plain = BallDetector::new(&cal).unwrap().unwrap().reference();
+            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+            let mut around = None;
+            for f in 0..frames {
+                let meta = sim.render(f, cam, &mut buf).unwrap();
+                let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
+                    .unwrap();
+                for at in [None, around] {
+                    let a = fast.detect(&view, at);
+                    let b = plain.detect(&view, at);
+                    assert_eq!(
+                        a, b,
+                        "{scenario} {setup} camera {cam} frame {f} around {at:?}"
+                    );
+                    compared.0 += 1;
+                    compared.1 += a.is_some() as usize;
+                }
+                around = fast.detect(&view, None).map(|d| (d.u_px, d.v_px));
+            }
+        }
+    }
+    eprintln!(
+        "{} detections compared, {} with a ball",
+        compared.0, compared.1
+    );
+    assert!(
+        compared.1 > 100,
+        "too few detections to compare: {compared:?}"
+    );
+}

@@ -2,14 +2,20 @@
 //! simulated table, in enhanced and paper mode (criterion). The frames are a sequence of
 //! gameplay (rods moving and turning at 200 fps), cycled, so that what a tracker learns or
 //! reuses from frame to frame is exercised as in a real run; the per-stage benchmarks run one
-//! stage on one frame.
+//! stage on one frame. The `ball` group measures the ball on frames of the `ball` scenario (a
+//! ball rolling among the figures): the tracker while it follows the ball (a window around
+//! the prediction), a full re-detection (the coarse scan of the whole field), and the whole
+//! table state, every rod the camera sees plus the ball, per camera frame.
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rodtrack_core::ball::{BallStatus, BallTracker};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraPipeline, FrameView, Mode, RodTracker, Stage};
-use rodtrack_sim::{default_cameras, RenderMode, Scenario, SceneConfig, Simulation};
+use rodtrack_sim::{
+    build_simulation, default_cameras, frame_time, RenderMode, Scenario, SceneConfig, Simulation,
+};
 use std::time::Duration;
 
 /// Consecutive frames of the sequence.
@@ -170,10 +176,106 @@ fn per_stage(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, per_frame, per_stage);
+/// Frames of the `ball` scenario (camera 0) and that camera's calibration with the table frame
+/// and the ball's colour, from the simulated clicks.
+fn ball_setup() -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
+    let seed = 3;
+    let mut sim = build_simulation("ball", Some(FRAMES), seed, false, "default").unwrap();
+    let cal = sim.calibrated_camera_with_ball(0, seed).unwrap();
+    let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
+    let mut frames = Vec::new();
+    let mut meta = sim.render(0, 0, &mut buf).unwrap();
+    for f in 0..FRAMES {
+        meta = sim.render(f, 0, &mut buf).unwrap();
+        frames.push(buf.clone());
+    }
+    (
+        frames,
+        cal,
+        (meta.width, meta.height, meta.stride, meta.format),
+    )
+}
+
+/// The ball alone (following it, and a full re-detection) and the whole table state (the rods
+/// and the ball) per camera frame.
+fn ball(c: &mut Criterion) {
+    ball_in(c, "ball");
+}
+
+fn ball_cpu(c: &mut Criterion<CpuTime>) {
+    ball_in(c, "ball_cpu");
+}
+
+fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
+    let (frames, cal, (w, h, stride, fmt)) = ball_setup();
+    let views: Vec<FrameView> = frames
+        .iter()
+        .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
+        .collect();
+    let mut tracker = BallTracker::new(&cal)
+        .unwrap()
+        .expect("the ball is calibrated");
+    // The frames the tracker follows the ball in (status ok after a first pass over them):
+    // the window search is what these time.
+    let ok: Vec<usize> = (0..2 * FRAMES as u64)
+        .map(|n| {
+            let i = n as usize % FRAMES;
+            (i, tracker.process(&views[i], n, frame_time(n, 200.0)))
+        })
+        .skip(FRAMES)
+        .filter(|(_, row)| row.status == BallStatus::Ok)
+        .map(|(i, _)| i)
+        .collect();
+    assert!(
+        ok.len() > FRAMES / 2,
+        "the ball is followed on {} of {FRAMES} frames",
+        ok.len()
+    );
+    let mut g = c.benchmark_group(group);
+    let mut i = 0;
+    let mut frame = 2 * FRAMES as u64;
+    g.bench_function("ball_tracking", |b| {
+        b.iter(|| {
+            let k = ok[i % ok.len()];
+            i += 1;
+            frame += 1;
+            std::hint::black_box(tracker.process(&views[k], frame, frame_time(frame, 200.0)))
+        })
+    });
+    let mut detector = tracker.detector().clone();
+    let mut i = 0;
+    g.bench_function("ball_redetection", |b| {
+        b.iter(|| {
+            let k = ok[i % ok.len()];
+            i += 1;
+            std::hint::black_box(detector.detect(&views[k], None))
+        })
+    });
+    let mut pipe = CameraPipeline::new(&cal, Mode::Enhanced).unwrap();
+    let mut tracker = BallTracker::new(&cal)
+        .unwrap()
+        .expect("the ball is calibrated");
+    let mut rows = Vec::with_capacity(16);
+    let mut i = 0u64;
+    g.bench_function(format!("table_{}_rods_and_ball", cal.rods.len()), |b| {
+        b.iter(|| {
+            let view = &views[i as usize % FRAMES];
+            rows.clear();
+            pipe.process(view, i, rodtrack_core::Timestamp(0), &mut rows)
+                .unwrap();
+            let ball = tracker.process(view, i, frame_time(i, 200.0));
+            i += 1;
+            std::hint::black_box(rows.len());
+            std::hint::black_box(ball)
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, per_frame, per_stage, ball);
 criterion_group! {
     name = cpu;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = per_frame_cpu
+    targets = per_frame_cpu, ball_cpu
 }
 criterion_main!(benches, cpu);

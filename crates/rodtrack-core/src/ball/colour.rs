@@ -70,7 +70,7 @@ impl QuadLayout {
     /// The mean `[R, G, B]` of quad `(qx, qy)` (pixels `2 qx .. 2 qx + 1`, `2 qy .. 2 qy + 1`),
     /// 8-bit scale. The caller keeps the quad inside the view (`qx < width / 2`, `qy < height
     /// / 2`).
-    #[inline]
+    #[inline(always)]
     pub fn rgb(&self, view: &FrameView, qx: usize, qy: usize) -> [f32; 3] {
         let d = view.data();
         let s = view.stride();
@@ -159,25 +159,24 @@ impl ColourModel {
     /// field.
     #[inline]
     pub fn is_ball(&self, rgb: [f32; 3]) -> bool {
-        match chroma(rgb) {
-            Some(c) => {
-                let db = dist(c, self.ball);
-                db < self.ball_thr && db < dist(c, self.field)
-            }
-            None => false,
-        }
+        // In chromaticity: |c - ball| < thr and |c - ball| < |c - field|, c = (R, G) / S. Both
+        // sides times S (squared), so without a division or a root per sample.
+        let s = rgb[0] + rgb[1] + rgb[2];
+        let db = scaled_dist2(rgb, self.ball, s);
+        s > 1.0
+            && db < self.ball_thr * self.ball_thr * s * s
+            && db < scaled_dist2(rgb, self.field, s)
     }
 
     /// A sample of the empty field's colour.
     #[inline]
     pub fn is_field(&self, rgb: [f32; 3]) -> bool {
-        match chroma(rgb) {
-            Some(c) => {
-                let df = dist(c, self.field);
-                df < self.field_thr && df < dist(c, self.ball)
-            }
-            None => false,
-        }
+        // As in `is_ball`, times the sample's sum.
+        let s = rgb[0] + rgb[1] + rgb[2];
+        let df = scaled_dist2(rgb, self.field, s);
+        s > 1.0
+            && df < self.field_thr * self.field_thr * s * s
+            && df < scaled_dist2(rgb, self.ball, s)
     }
 
     /// Position of the sample along the field -> ball chromaticity axis (0 field, 1 ball).
@@ -190,6 +189,12 @@ impl ColourModel {
             None => 0.0,
         }
     }
+}
+
+/// The squared chromaticity distance of `rgb` (sum `s`) from `c`, times `s` squared.
+#[inline]
+fn scaled_dist2(rgb: [f32; 3], c: [f32; 2], s: f32) -> f32 {
+    (rgb[0] - c[0] * s).powi(2) + (rgb[1] - c[1] * s).powi(2)
 }
 
 #[inline]

@@ -42,6 +42,13 @@ pub struct BallDetector {
     /// The region searched when lost, quads: `[x0, y0, x1, y1)`.
     field_q: [usize; 4],
     coarse_step: usize,
+    /// Bounds of the ball's expected image radius anywhere in the image, quads: a blob is
+    /// judged against them before its own expected radius (a ray through the lens) is
+    /// computed, so that specks of the ball's colour cost no ray.
+    rq_low: f64,
+    rq_high: f64,
+    /// The plain reference: no early rejection, no memo ([`BallDetector::reference`]).
+    plain: bool,
     mask: Vec<u8>,
     stack: Vec<u32>,
     dirs: [[f32; 2]; N_RAYS],
@@ -49,6 +56,49 @@ pub struct BallDetector {
     octant: Vec<u8>,
     resid: Vec<f64>,
     sorted: Vec<f64>,
+    /// Each quad's colour position (field 0, ball 1) around the blob being fitted, computed
+    /// once per quad the rays reach (NaN until then): the rays' bilinear samples share quads.
+    alpha: AlphaMemo,
+}
+
+/// The quads' colour positions around a blob, each computed at most once per fit.
+#[derive(Debug, Clone)]
+struct AlphaMemo {
+    /// Quad of cell 0.
+    x0: isize,
+    y0: isize,
+    /// Cells per row and rows in use.
+    w: usize,
+    h: usize,
+    cells: Vec<f32>,
+}
+
+impl AlphaMemo {
+    /// Starts a fit over the square of half size `half_q` quads around `(cx_q, cy_q)`; false
+    /// when it does not fit the buffer (then the rays compute every sample).
+    fn start(&mut self, cx_q: f64, cy_q: f64, half_q: f64) -> bool {
+        let n = (2.0 * half_q).ceil() as usize + 3;
+        if !(half_q.is_finite() && n * n <= self.cells.capacity()) {
+            self.w = 0;
+            self.h = 0;
+            return false;
+        }
+        self.x0 = (cx_q - half_q).floor() as isize - 1;
+        self.y0 = (cy_q - half_q).floor() as isize - 1;
+        self.w = n;
+        self.h = n;
+        self.cells.clear();
+        self.cells.resize(n * n, f32::NAN);
+        true
+    }
+
+    /// The memo's cell of quad `(x, y)`, if it covers it.
+    #[inline]
+    fn cell(&self, x: usize, y: usize) -> Option<usize> {
+        let (dx, dy) = (x as isize - self.x0, y as isize - self.y0);
+        (dx >= 0 && dy >= 0 && (dx as usize) < self.w && (dy as usize) < self.h)
+            .then(|| dy as usize * self.w + dx as usize)
+    }
 }
 
 /// A blob of colour candidates.
@@ -118,6 +168,22 @@ impl BallDetector {
                 "the field plane is not in front of the camera".into(),
             ));
         }
+        // The nearest a ball can be is the camera's height above the ball's plane: the largest
+        // image radius anywhere. The smallest, from the border samples above, is lowered by a
+        // tenth for the border between them.
+        let height_mm = cam.pose.centre_world()[2] - radius_mm;
+        if height_mm.is_nan() || height_mm <= radius_mm {
+            return Err(err(
+                "table",
+                "the camera is not above the ball's plane".into(),
+            ));
+        }
+        let f = 0.5 * (k.fx + k.fy);
+        let rq_high = 0.5 * f * radius_mm / (height_mm * height_mm - radius_mm * radius_mm).sqrt();
+        let rq_low = 0.9 * rq_min;
+        // The rays reach 1.8 expected radii and one quad beyond the blob's centre, and look two
+        // quads past an edge.
+        let memo_side = (2.0 * (1.8 * rq_high + 4.0)).ceil() as usize + 3;
         let field_q = [0, 0, qw, qh];
         // Every 4th quad when the ball is large enough to leave a blob of cells at that step.
         let coarse_step = ((rq_min / 2.0).floor() as usize).clamp(1, 4);
@@ -135,6 +201,9 @@ impl BallDetector {
             qh,
             field_q,
             coarse_step,
+            rq_low,
+            rq_high,
+            plain: false,
             mask: vec![0; qw * qh],
             stack: Vec::with_capacity(qw * qh),
             dirs,
@@ -142,7 +211,22 @@ impl BallDetector {
             octant: Vec::with_capacity(N_RAYS),
             resid: Vec::with_capacity(N_RAYS),
             sorted: Vec::with_capacity(N_RAYS),
+            alpha: AlphaMemo {
+                x0: 0,
+                y0: 0,
+                w: 0,
+                h: 0,
+                cells: Vec::with_capacity(memo_side * memo_side),
+            },
         }))
+    }
+
+    /// The same detector in its plain form: every blob judged by its own expected radius and
+    /// every sample's colour computed where it is read. Slower, with the same results: the
+    /// parity tests hold the fast path to it.
+    pub fn reference(mut self) -> BallDetector {
+        self.plain = true;
+        self
     }
 
     /// The camera in the table frame.
@@ -264,6 +348,15 @@ impl BallDetector {
                 }
             }
             let s = step as f64;
+            // What no ball anywhere in the image could leave: too few cells or too long.
+            let (ext_x, ext_y) = ((bx1 - bx0 + 1) as f64 * s, (by1 - by0 + 1) as f64 * s);
+            let low_area = std::f64::consts::PI * self.rq_low * self.rq_low / (s * s);
+            let high_ext = EXTENT_RATIO_MAX * 2.0 * self.rq_high + s;
+            let hopeless =
+                (cnt as f64) < AREA_RATIO_MIN * low_area || ext_x > high_ext || ext_y > high_ext;
+            if hopeless && !self.plain {
+                continue;
+            }
             let cx_q = x0 as f64 + s * sx as f64 / cnt as f64;
             let cy_q = y0 as f64 + s * sy as f64 / cnt as f64;
             let Some(r) = expected_radius_px(
@@ -277,8 +370,6 @@ impl BallDetector {
             let rq = 0.5 * r;
             let expected = std::f64::consts::PI * rq * rq / (s * s);
             let ratio = cnt as f64 / expected;
-            let ext_x = (bx1 - bx0 + 1) as f64 * s;
-            let ext_y = (by1 - by0 + 1) as f64 * s;
             let max_ext = EXTENT_RATIO_MAX * 2.0 * rq + s;
             if !(AREA_RATIO_MIN..=AREA_RATIO_MAX).contains(&ratio)
                 || ext_x > max_ext
@@ -300,7 +391,7 @@ impl BallDetector {
     }
 
     /// The colour's position between field (0) and ball (1), bilinear between quad centres.
-    fn alpha_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
+    fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
         if x_q < 0.0 || y_q < 0.0 {
             return None;
         }
@@ -309,7 +400,19 @@ impl BallDetector {
             return None;
         }
         let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
-        let a = |x: usize, y: usize| self.colours.alpha(self.layout.rgb(view, x, y));
+        let mut a = |x: usize, y: usize| match self.alpha.cell(x, y) {
+            Some(c) => {
+                let v = self.alpha.cells[c];
+                if v.is_nan() {
+                    let v = self.colours.alpha(self.layout.rgb(view, x, y));
+                    self.alpha.cells[c] = v;
+                    v
+                } else {
+                    v
+                }
+            }
+            None => self.colours.alpha(self.layout.rgb(view, x, y)),
+        };
         let top = a(ix, iy) * (1.0 - fx) + a(ix + 1, iy) * fx;
         let bot = a(ix, iy + 1) * (1.0 - fx) + a(ix + 1, iy + 1) * fx;
         Some(top * (1.0 - fy) + bot * fy)
@@ -329,6 +432,8 @@ impl BallDetector {
     fn fit(&mut self, view: &FrameView, blob: Blob) -> Option<Detection> {
         let rq = blob.rq;
         let dt = 0.25;
+        let half = if self.plain { f64::NAN } else { 1.8 * rq + 2.0 };
+        self.alpha.start(blob.cx_q, blob.cy_q, half);
         self.rays.clear();
         self.octant.clear();
         for i in 0..N_RAYS {
