@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-use rodtrack_core::ball::events::{match_events, BallEvent, EventConfig, EventKind};
+use rodtrack_core::ball::events::{match_events, BallEvent, EventConfig, EventKind, TableGeometry};
 use rodtrack_core::calib::{CalibrationFile, CALIBRATION_VERSION};
 use rodtrack_core::{CameraPipeline, Mode};
 use rodtrack_io::{BallVecSink, EventVecSink, VecSink};
@@ -139,4 +139,49 @@ fn goals_scenario_every_goal_found_and_the_score_right() {
         shots.found
     );
     assert_eq!(outs.missed, 0, "ball out");
+}
+
+/// The table the events see, from a simulated calibration: every rod's axis within 3 mm of the
+/// simulator's (table frame), the reference field; a session asked for events without the ball
+/// is refused, naming the order.
+#[test]
+fn the_table_s_rods_come_from_the_calibration() {
+    let seed = 3;
+    let mut sim = build_simulation("static", Some(2), seed, false, "default").unwrap();
+    let cal = calibrate(&mut sim, seed);
+    let geom = TableGeometry::from_calibration(&cal, &EventConfig::default()).unwrap();
+    let scene = sim.scene();
+    assert_eq!(geom.rods.len(), scene.rods.len(), "{:?}", geom.rods);
+    for (&(rod, x), truth) in geom.rods.iter().zip(&scene.rods) {
+        let want = truth.x_mm - 0.5 * scene.field_length_mm;
+        eprintln!("rod {rod}: axis x {x:.2} mm, truth {want:.2} mm");
+        assert!((x - want).abs() < 3.0, "rod {rod}: {x:.2} vs {want:.2}");
+    }
+    assert_eq!((geom.x_min_mm, geom.x_max_mm), (-600.0, 600.0));
+    // A field configured too small for the clicked corners is refused.
+    let small = EventConfig {
+        field_length_mm: 1000.0,
+        ..EventConfig::default()
+    };
+    let err = TableGeometry::from_calibration(&cal, &small).unwrap_err();
+    assert!(err.to_string().contains("field"), "{err}");
+    let sources = SimSource::for_simulation(&sim, Default::default()).unwrap();
+    let cameras = sources
+        .into_iter()
+        .zip(&cal.cameras)
+        .map(|(s, c)| SessionCamera {
+            label: format!("camera {}", c.index),
+            source: Box::new(s),
+            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
+        })
+        .collect();
+    let err = Session::from_cameras(cameras, SessionOptions::default())
+        .with_events(
+            &cal,
+            EventConfig::default(),
+            Box::new(EventVecSink::default()),
+        )
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("with_ball"), "{err}");
 }

@@ -316,3 +316,71 @@ pub(crate) fn script(rng: &mut Rng, scene: &SceneConfig, s: &mut Scenario, end_s
 fn rc_index(rod: usize) -> u32 {
     u32::try_from(rod).unwrap_or(u32::MAX)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scripted events agree with the ball's path: a goal's centre crosses its line
+    /// within the mouth at the event's time and the ball is gone right after; a shot's speed is
+    /// the path's just after the kick, from the kicking rod's foot; a stopped ball does not
+    /// move for 0.5 s; goals for both sides, the score counting up by one.
+    #[test]
+    fn the_truth_events_agree_with_the_ball_s_path() {
+        let scene = SceneConfig::default();
+        let half_mouth = 0.5 * EventConfig::default().goal_width_mm;
+        let cy = 0.5 * scene.field_width_mm;
+        for seed in [1, 7, 42] {
+            let s = Scenario::by_name("goals", &scene, seed).unwrap();
+            let path = s.ball.as_ref().unwrap();
+            let mut score = [0u32; 2];
+            for &(t, e) in &s.events {
+                match e {
+                    EventKind::Goal {
+                        side,
+                        goal,
+                        score: after,
+                    } => {
+                        score[side.index()] += 1;
+                        assert_eq!(after, score, "seed {seed}: t {t}");
+                        assert_eq!(goal, side.other());
+                        let line = if goal == Side::B {
+                            scene.field_length_mm
+                        } else {
+                            0.0
+                        };
+                        let (xa, ya) = path.at(t - 1e-3).unwrap();
+                        let (xb, _) = path.at(t + 1e-3).unwrap();
+                        assert!(
+                            (xa - line).signum() != (xb - line).signum(),
+                            "seed {seed}: the goal at {t} s crosses the line ({xa} -> {xb})"
+                        );
+                        assert!((ya - cy).abs() < half_mouth, "seed {seed}: y {ya}");
+                        assert!(path.at(t + 0.05).is_none(), "seed {seed}: gone after {t} s");
+                    }
+                    EventKind::Shot {
+                        speed_mm_s, rod, ..
+                    } => {
+                        let (vx, vy) = path.velocity(t + 1e-3);
+                        assert!((vx.hypot(vy) - speed_mm_s).abs() < 1e-6 * speed_mm_s);
+                        let r = &scene.rods[rod.unwrap() as usize];
+                        let (x, _) = path.at(t).unwrap();
+                        assert!(((x - r.x_mm).abs() - FOOT_AHEAD_MM).abs() < 1e-6);
+                    }
+                    EventKind::BallStopped { .. } => {
+                        let a = path.at(t).unwrap();
+                        let b = path.at(t + 0.5).unwrap();
+                        assert!((a.0 - b.0).hypot(a.1 - b.1) < 1e-6, "seed {seed}: at {t} s");
+                    }
+                    EventKind::BallOut { .. } => {
+                        assert!(path.at(t + 0.01).is_none() && path.at(t + 1.2).is_none());
+                    }
+                }
+            }
+            assert!(
+                score[0] >= 3 && score[1] >= 3,
+                "seed {seed}: goals for both sides, {score:?}"
+            );
+        }
+    }
+}
