@@ -9,6 +9,8 @@
 //! - a **miss**: at the end wall outside the mouth; it bounces (45 % of the speed along the
 //!   table, 60 % across), rolls with 2 m/s^2 of friction, off the side walls, to rest for
 //!   0.8 s, and is then picked up (0.4 s) and put at the centre;
+//! - a **rebound**: into the mouth, wholly past the line (10 mm), off the goal's back and out
+//!   again at 45 % of the speed, then as a miss: no goal;
 //! - **out**: the ball rolls against a side wall and leaves the table (gone 1.5 s).
 //!
 //! The goal mouth's width is the events' reference default
@@ -120,6 +122,7 @@ impl Script<'_> {
 enum Play {
     Goal,
     Miss,
+    Rebound,
     Out,
 }
 
@@ -145,7 +148,7 @@ pub(crate) fn script(rng: &mut Rng, scene: &SceneConfig, s: &mut Scenario, end_s
     let plays = [
         (Side::A, Play::Goal),
         (Side::B, Play::Goal),
-        (Side::A, Play::Miss),
+        (Side::A, Play::Rebound),
         (Side::B, Play::Goal),
         (Side::A, Play::Goal),
         (Side::B, Play::Miss),
@@ -259,20 +262,33 @@ pub(crate) fn script(rng: &mut Rng, scene: &SceneConfig, s: &mut Scenario, end_s
                 let c = sc.centre();
                 sc.hide(1.0, c);
             }
-            Play::Miss | Play::Out => {
-                let off = rng.range(
-                    0.5 * goal_width_mm + sc.r + 15.0,
-                    0.5 * scene.field_width_mm - sc.r - 20.0,
-                );
-                let ty = if rng.below(2) == 0 {
-                    cy + off
+            Play::Miss | Play::Rebound | Play::Out => {
+                let d;
+                if play == Play::Rebound {
+                    // Into the mouth, 10 mm past the line (the ball wholly in), off the goal's
+                    // back and out again: no goal.
+                    let half = 0.5 * goal_width_mm - sc.r - 10.0;
+                    let ty = cy + rng.range(-half, half);
+                    let back = [line + dir * (sc.r + 10.0), ty];
+                    d = [back[0] - sc.p[0], back[1] - sc.p[1]];
+                    sc.go(back, speed);
+                    let out = [line - dir * (sc.r + 1.0), ty];
+                    sc.go(out, 0.45 * speed);
                 } else {
-                    cy - off
-                };
-                let target = [line - dir * (sc.r + 1.0), ty];
-                let d = [target[0] - sc.p[0], target[1] - sc.p[1]];
+                    let off = rng.range(
+                        0.5 * goal_width_mm + sc.r + 15.0,
+                        0.5 * scene.field_width_mm - sc.r - 20.0,
+                    );
+                    let ty = if rng.below(2) == 0 {
+                        cy + off
+                    } else {
+                        cy - off
+                    };
+                    let target = [line - dir * (sc.r + 1.0), ty];
+                    d = [target[0] - sc.p[0], target[1] - sc.p[1]];
+                    sc.go(target, speed);
+                }
                 let n = d[0].hypot(d[1]);
-                sc.go(target, speed);
                 sc.roll([-0.45 * speed * d[0] / n, 0.6 * speed * d[1] / n]);
                 let rest = sc.table(sc.p);
                 sc.events.push((

@@ -327,8 +327,8 @@ impl Scenario {
             }
             "goals" => {
                 // Shots from the figures' feet at 2.5 to 6 m/s: goals for both sides (the ball
-                // put back at the centre), misses bouncing off the end walls to rest, a ball
-                // leaving the table; the truth events in `events`.
+                // put back at the centre), a miss bouncing off an end wall to rest, a rebound
+                // out of a goal, a ball leaving the table; the truth events in `events`.
                 end = 24.0;
                 crate::goals::script(&mut rng, scene, &mut s, end);
             }

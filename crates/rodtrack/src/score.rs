@@ -23,8 +23,9 @@ pub struct Args {
     /// The events found (`track --events-out`), scored against --events-truth.
     #[arg(long, requires = "events_truth")]
     pub events: Option<PathBuf>,
-    /// Events within this many frames of the truth's are the same event.
-    #[arg(long, default_value_t = 20)]
+    /// Events within this many frames of the truth's are the same event (0.15 s at 200 fps:
+    /// a ball slowing to rest is within the stop's 5 mm some frames before it rests).
+    #[arg(long, default_value_t = 30)]
     pub events_tolerance_frames: u64,
     /// Write the table as JSON here too.
     #[arg(long)]

@@ -15,8 +15,10 @@
 //! - **shot**: an `ok` row at least [`EventConfig::shot_min_speed_mm_s`] whose speed exceeds
 //!   by [`EventConfig::shot_min_jump_mm_s`] the fastest `ok` row of the window before it
 //!   (ages [`EventConfig::shot_before_min_s`] to [`EventConfig::shot_before_max_s`]): a
-//!   bounce, which only slows the ball, is no shot. The speed is the fastest within
-//!   [`EventConfig::shot_settle_s`] of the jump; the rod is the one whose axis is nearest the
+//!   bounce, which only slows the ball, is no shot. At least [`EventConfig::shot_min_rows`]
+//!   `ok` rows within [`EventConfig::shot_settle_s`] of the jump are that fast; the speed is
+//!   the mean of the rows after the jump's within that time (the filter's velocity restarts
+//!   at the jump from the positions before and after the kick); the rod is the one whose axis is nearest the
 //!   ball's last slow position, when within [`EventConfig::rod_reach_mm`].
 //! - **ball_out**: an `ok` row more than [`EventConfig::out_margin_mm`] beyond the field's
 //!   edge (not within a goal mouth), or the last `ok` row within [`EventConfig::out_edge_mm`]
@@ -25,11 +27,13 @@
 //! - **ball_stopped**: `ok` rows staying within [`EventConfig::stopped_radius_mm`] of the
 //!   first of them for [`EventConfig::stopped_min_s`]. Frame: the first.
 
+mod config;
 mod geometry;
 mod score;
 #[cfg(test)]
 mod tests;
 
+pub use config::EventConfig;
 pub use geometry::TableGeometry;
 pub use score::{match_events, same_kind, EventMatch};
 
@@ -209,141 +213,6 @@ impl BallEvent {
     }
 }
 
-/// The event rules' constants (see the module's documentation). The defaults are for the
-/// reference table (SPEC section 1) at 100 to 230 frames per second.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct EventConfig {
-    /// The field's length (goal line to goal line, along `x`), mm; the table frame's origin
-    /// is its centre. Default 1200 (SPEC section 1).
-    pub field_length_mm: f64,
-    /// The field's width (wall to wall, along `y`), mm. Default 680.
-    pub field_width_mm: f64,
-    /// The rods' axes' height above the field, mm (to place each rod's axis in the table
-    /// frame from its calibrated image path). Default 80.
-    pub rod_axis_height_mm: f64,
-    /// The goal mouth's width across the table (along `y`), centred on the field's centre
-    /// line, mm. Default 205 (common table football tables: 200 to 210 mm).
-    pub goal_width_mm: f64,
-    /// How long the ball must stay away after crossing a goal line for a goal, s.
-    pub goal_grace_s: f64,
-    /// An `ok` row within this distance of a goal line, on the field side, during the grace
-    /// time, is the ball coming back out of the goal: no goal, mm.
-    pub return_zone_mm: f64,
-    /// How far inside the field the ball's centre must be to count as on the field (for the
-    /// return and for arming the next goal), mm.
-    pub line_margin_mm: f64,
-    /// A shot's least speed, mm/s.
-    pub shot_min_speed_mm_s: f64,
-    /// A shot's least speed increase over the window before it, mm/s.
-    pub shot_min_jump_mm_s: f64,
-    /// The window before a row that gives its speed before a kick: from this age, s...
-    pub shot_before_min_s: f64,
-    /// ... to this age, s.
-    pub shot_before_max_s: f64,
-    /// After the jump, the fastest `ok` row within this time gives the shot's speed, s.
-    pub shot_settle_s: f64,
-    /// No second shot within this time of one, s.
-    pub shot_refractory_s: f64,
-    /// A rod is credited with a shot when its axis is within this distance (along `x`) of
-    /// the ball, mm.
-    pub rod_reach_mm: f64,
-    /// A ball seen this far beyond the field's edge (outside a goal mouth) is out, mm.
-    pub out_margin_mm: f64,
-    /// A ball last seen within this distance of the field's edge ...
-    pub out_edge_mm: f64,
-    /// ... and not seen again for this long is out, s.
-    pub out_lost_s: f64,
-    /// A ball staying within this distance ...
-    pub stopped_radius_mm: f64,
-    /// ... for this long has stopped, s.
-    pub stopped_min_s: f64,
-}
-
-impl Default for EventConfig {
-    fn default() -> Self {
-        EventConfig {
-            field_length_mm: 1200.0,
-            field_width_mm: 680.0,
-            rod_axis_height_mm: 80.0,
-            goal_width_mm: 205.0,
-            goal_grace_s: 0.5,
-            return_zone_mm: 200.0,
-            line_margin_mm: 10.0,
-            shot_min_speed_mm_s: 1500.0,
-            shot_min_jump_mm_s: 1000.0,
-            shot_before_min_s: 0.015,
-            shot_before_max_s: 0.06,
-            shot_settle_s: 0.025,
-            shot_refractory_s: 0.2,
-            rod_reach_mm: 60.0,
-            out_margin_mm: 35.0,
-            out_edge_mm: 60.0,
-            out_lost_s: 1.0,
-            stopped_radius_mm: 5.0,
-            stopped_min_s: 0.5,
-        }
-    }
-}
-
-impl EventConfig {
-    /// Checks that every number is finite and positive (the margins may be 0), and the shot
-    /// window is ordered.
-    pub fn validate(&self) -> Result<(), crate::CoreError> {
-        let fields = [
-            ("field_length_mm", self.field_length_mm, false),
-            ("field_width_mm", self.field_width_mm, false),
-            ("rod_axis_height_mm", self.rod_axis_height_mm, true),
-            ("goal_width_mm", self.goal_width_mm, false),
-            ("goal_grace_s", self.goal_grace_s, false),
-            ("return_zone_mm", self.return_zone_mm, false),
-            ("line_margin_mm", self.line_margin_mm, true),
-            ("shot_min_speed_mm_s", self.shot_min_speed_mm_s, false),
-            ("shot_min_jump_mm_s", self.shot_min_jump_mm_s, false),
-            ("shot_before_min_s", self.shot_before_min_s, true),
-            ("shot_before_max_s", self.shot_before_max_s, false),
-            ("shot_settle_s", self.shot_settle_s, true),
-            ("shot_refractory_s", self.shot_refractory_s, true),
-            ("rod_reach_mm", self.rod_reach_mm, true),
-            ("out_margin_mm", self.out_margin_mm, true),
-            ("out_edge_mm", self.out_edge_mm, true),
-            ("out_lost_s", self.out_lost_s, false),
-            ("stopped_radius_mm", self.stopped_radius_mm, false),
-            ("stopped_min_s", self.stopped_min_s, false),
-        ];
-        for (field, v, zero_ok) in fields {
-            if !v.is_finite() || v < 0.0 || (v == 0.0 && !zero_ok) {
-                return Err(crate::CoreError::Events {
-                    field,
-                    reason: format!(
-                        "must be a finite {} number, got {v}",
-                        if zero_ok { "non-negative" } else { "positive" }
-                    ),
-                });
-            }
-        }
-        if self.goal_width_mm >= self.field_width_mm {
-            return Err(crate::CoreError::Events {
-                field: "goal_width_mm",
-                reason: format!(
-                    "must be below the field's width ({} >= {})",
-                    self.goal_width_mm, self.field_width_mm
-                ),
-            });
-        }
-        if self.shot_before_min_s >= self.shot_before_max_s {
-            return Err(crate::CoreError::Events {
-                field: "shot_before_min_s",
-                reason: format!(
-                    "must be below shot_before_max_s ({} >= {})",
-                    self.shot_before_min_s, self.shot_before_max_s
-                ),
-            });
-        }
-        Ok(())
-    }
-}
-
 /// `ok` rows kept for the shot's window (80 ms at 200 fps; a faster camera's window is cut
 /// to the last this many rows).
 const HISTORY: usize = 16;
@@ -367,7 +236,17 @@ struct PendingGoal {
 #[derive(Debug, Clone, Copy)]
 struct PendingShot {
     start: Sample,
-    speed_mm_s: f64,
+    /// The first fast row's time.
+    jump: Timestamp,
+    /// The speed before the jump, mm/s.
+    before_mm_s: f64,
+    /// The jump row's speed, mm/s.
+    first_mm_s: f64,
+    /// The sum of the later rows' speeds within the settle time, mm/s, and their count.
+    later_sum_mm_s: f64,
+    later: u32,
+    /// `ok` rows within the settle time still faster than `before_mm_s` by the least jump.
+    fast_rows: u32,
     rod: Option<u32>,
 }
 
@@ -493,7 +372,7 @@ impl EventDetector {
             self.shot_rule(sample, out);
             self.last_seen = Some(sample);
         } else if let Some(s) = self.pending_shot {
-            if t.seconds_since(s.start.t) >= self.cfg.shot_settle_s {
+            if t.seconds_since(s.jump) >= self.cfg.shot_settle_s {
                 self.emit_shot(out);
             }
         }
@@ -637,8 +516,12 @@ impl EventDetector {
 
     fn shot_rule(&mut self, s: Sample, out: &mut Vec<BallEvent>) {
         if let Some(p) = self.pending_shot.as_mut() {
-            if s.t.seconds_since(p.start.t) < self.cfg.shot_settle_s {
-                p.speed_mm_s = p.speed_mm_s.max(s.speed_mm_s);
+            if s.t.seconds_since(p.jump) < self.cfg.shot_settle_s {
+                p.later_sum_mm_s += s.speed_mm_s;
+                p.later += 1;
+                if s.speed_mm_s - p.before_mm_s >= self.cfg.shot_min_jump_mm_s {
+                    p.fast_rows += 1;
+                }
             } else {
                 self.emit_shot(out);
             }
@@ -665,10 +548,14 @@ impl EventDetector {
                 let start = last_before.unwrap_or(s);
                 self.pending_shot = Some(PendingShot {
                     start,
-                    speed_mm_s: s.speed_mm_s,
+                    jump: s.t,
+                    before_mm_s: before,
+                    first_mm_s: s.speed_mm_s,
+                    later_sum_mm_s: 0.0,
+                    later: 0,
+                    fast_rows: 1,
                     rod: self.geom.nearest_rod(start.x_mm, self.cfg.rod_reach_mm),
                 });
-                self.last_shot = Some(s.t);
             }
         }
         self.history[self.history_next] = s;
@@ -676,13 +563,23 @@ impl EventDetector {
         self.history_len = (self.history_len + 1).min(HISTORY);
     }
 
+    /// Writes the pending shot when it was fast on enough rows (else it was one bad row).
     fn emit_shot(&mut self, out: &mut Vec<BallEvent>) {
-        if let Some(p) = self.pending_shot.take() {
+        if let Some(p) = self
+            .pending_shot
+            .take()
+            .filter(|p| p.fast_rows >= self.cfg.shot_min_rows)
+        {
+            self.last_shot = Some(p.jump);
             out.push(BallEvent {
                 frame: p.start.frame,
                 timestamp_ns: p.start.t,
                 kind: EventKind::Shot {
-                    speed_mm_s: p.speed_mm_s,
+                    speed_mm_s: if p.later > 0 {
+                        p.later_sum_mm_s / f64::from(p.later)
+                    } else {
+                        p.first_mm_s
+                    },
                     rod: p.rod,
                     x_mm: p.start.x_mm,
                     y_mm: p.start.y_mm,

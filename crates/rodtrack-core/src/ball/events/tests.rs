@@ -213,6 +213,18 @@ fn a_kick_is_a_shot_and_a_bounce_is_not() {
     assert_eq!(rods, [None], "75 mm from two axes 150 mm apart: {ev:?}");
 }
 
+/// One fast row alone (a bad detection just before the ball disappears) is no shot; two are.
+#[test]
+fn one_fast_row_is_no_shot() {
+    for (fast_s, shots) in [(0.005, 0), (0.01, 1)] {
+        let mut s = Script::new();
+        s.ok(0.3, [0.0, 50.0], [2000.0, 0.0])
+            .ok(fast_s, [600.0, 50.0], [4000.0, 0.0])
+            .lost(0.5);
+        assert_eq!(count(&s.events().0, "shot"), shots, "{fast_s} s fast");
+    }
+}
+
 /// At rest for 0.6 s: stopped, at the first still row; for 0.3 s: not.
 #[test]
 fn a_ball_at_rest_long_enough_has_stopped() {
