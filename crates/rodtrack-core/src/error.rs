@@ -85,4 +85,12 @@ pub enum CoreError {
         /// Why.
         reason: String,
     },
+    /// The ball's events' table geometry or rules are invalid.
+    #[error("events: `{field}` {reason}")]
+    Events {
+        /// The field.
+        field: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
 }

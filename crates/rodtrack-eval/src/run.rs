@@ -214,6 +214,7 @@ fn run_scenario(
             paper: true,
             hooks: None,
             on_rows: Some(on_rows),
+            events: None,
         },
     )?;
     let mut rows = ScenarioRows::default();

@@ -3,7 +3,7 @@
 //! paper's algorithm on the same frames alongside when asked.
 
 use crate::{EvalError, Result};
-use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::calib::{CalibrationFile, CameraCalibration};
 use rodtrack_core::{CameraId, CameraPipeline, Measurement, Mode};
 use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
 use rodtrack_sdk::{Hooks, Progress, RunReport, Session, SessionCamera, SessionOptions};
@@ -25,6 +25,9 @@ pub struct SimRun<'a> {
     /// Called with every write of filtered rows (each camera's, then the fused ones) and the
     /// latest progress.
     pub on_rows: Option<RowsCallback>,
+    /// Also the ball and its events, with this calibration (the cameras' table frame and
+    /// ball) into this sink ([`Session::with_events`]).
+    pub events: Option<(&'a CalibrationFile, rodtrack_io::EventVecSink)>,
 }
 
 /// See [`SimRun::hooks`]: given the session's cameras before it starts.
@@ -187,9 +190,13 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
         hooked: hooked.clone(),
         on_rows: run.on_rows,
     };
-    let (report, sink) = Session::from_cameras(cameras, options)
-        .with_hooks(hooked.clone())
-        .run(sink)?;
+    let mut session = Session::from_cameras(cameras, options).with_hooks(hooked.clone());
+    if let Some((cal, events)) = run.events {
+        session = session
+            .with_ball(cal, Box::new(rodtrack_io::BallVecSink::default()))?
+            .with_events(cal, Default::default(), Box::new(events))?;
+    }
+    let (report, sink) = session.run(sink)?;
     drop(sink);
     let mut rows = match Arc::try_unwrap(hooked) {
         Ok(h) => h.rows.into_inner().unwrap_or_default(),

@@ -2,9 +2,12 @@
 //! and the rows go, in frame order, to a [`BallSink`] ([`crate::Session::with_ball`]).
 
 use crate::SdkError;
+use rodtrack_core::ball::events::{
+    BallEvent, EventConfig, EventDetector, EventKind, TableGeometry,
+};
 use rodtrack_core::ball::{BallFuser, BallRow, BallStatus, BallTracker, CameraBall};
 use rodtrack_core::calib::CalibrationFile;
-use rodtrack_io::BallSink;
+use rodtrack_io::{BallSink, EventSink};
 use std::sync::{Arc, Mutex};
 
 /// The most ball rows held back for a camera that has not reported their frame yet (a second
@@ -23,6 +26,80 @@ pub struct BallCounts {
     pub lost: u64,
     /// Rows `conflict` (fused rows whose cameras disagree).
     pub conflict: u64,
+}
+
+/// Counts of the events a session wrote ([`crate::Session::with_events`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct EventCounts {
+    /// Goals.
+    pub goals: u64,
+    /// Shots.
+    pub shots: u64,
+    /// Balls out of play.
+    pub ball_out: u64,
+    /// Balls stopped.
+    pub ball_stopped: u64,
+    /// The final score, `[side A, side B]`.
+    pub score: [u32; 2],
+}
+
+/// The events of the frame sets' ball rows: the detector and its sink.
+struct EventStage {
+    det: EventDetector,
+    sink: Box<dyn EventSink>,
+    /// The events of one write, kept for its capacity.
+    buf: Vec<BallEvent>,
+    /// The last frame given to the detector (a row that comes later, out of order, is not).
+    last_frame: Option<u64>,
+    counts: EventCounts,
+    error: Option<String>,
+}
+
+impl EventStage {
+    fn push(&mut self, row: &BallRow) {
+        if self.last_frame.is_some_and(|f| row.frame <= f) {
+            return;
+        }
+        self.last_frame = Some(row.frame);
+        self.det.push(row, &mut self.buf);
+    }
+
+    /// Writes the events decided so far (counted), keeping the first error.
+    fn write(&mut self) {
+        if self.buf.is_empty() {
+            return;
+        }
+        for e in &self.buf {
+            match e.kind {
+                EventKind::Goal { .. } => self.counts.goals += 1,
+                EventKind::Shot { .. } => self.counts.shots += 1,
+                EventKind::BallOut { .. } => self.counts.ball_out += 1,
+                EventKind::BallStopped { .. } => self.counts.ball_stopped += 1,
+            }
+        }
+        self.counts.score = self.det.score();
+        if self.error.is_none() {
+            if let Err(e) = self.sink.write(&self.buf) {
+                self.error = Some(e.to_string());
+            }
+        }
+        self.buf.clear();
+    }
+
+    fn finish(&mut self) -> Result<EventCounts, SdkError> {
+        self.det.finish(&mut self.buf);
+        self.write();
+        self.counts.score = self.det.score();
+        if self.error.is_none() {
+            if let Err(e) = self.sink.flush() {
+                self.error = Some(e.to_string());
+            }
+        }
+        match &self.error {
+            Some(e) => Err(SdkError::Runtime(format!("writing the events: {e}"))),
+            None => Ok(self.counts),
+        }
+    }
 }
 
 /// The session's ball: the trackers (taken by the cameras' threads) and the ordered writer.
@@ -46,6 +123,8 @@ pub(crate) struct BallWriter {
     last: Vec<(u32, Option<u64>)>,
     error: Option<String>,
     counts: BallCounts,
+    /// The events of each frame set's row (the fused row, or the one camera's).
+    events: Option<EventStage>,
 }
 
 impl BallStage {
@@ -81,6 +160,41 @@ impl BallStage {
         Some((self.trackers.swap_remove(at).1, self.writer.clone()))
     }
 
+    /// Detects the events of the frame sets' ball rows (the `fused` row with several cameras,
+    /// else the camera's) with the table of `cal` and the rules `cfg`, into `sink`.
+    pub(crate) fn set_events(
+        &mut self,
+        cal: &CalibrationFile,
+        cfg: EventConfig,
+        sink: Box<dyn EventSink>,
+    ) -> Result<(), SdkError> {
+        let geom = TableGeometry::from_calibration(cal, &cfg)
+            .map_err(|e| SdkError::core("the events", e))?;
+        let det = EventDetector::new(geom, cfg).map_err(|e| SdkError::core("the events", e))?;
+        let mut w = self
+            .writer
+            .lock()
+            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
+        w.events = Some(EventStage {
+            det,
+            sink,
+            buf: Vec::with_capacity(64),
+            last_frame: None,
+            counts: EventCounts::default(),
+            error: None,
+        });
+        Ok(())
+    }
+
+    /// The event counts, when events were asked for (after [`BallStage::finish`]).
+    pub(crate) fn finish_events(&self) -> Result<Option<EventCounts>, SdkError> {
+        let mut w = self
+            .writer
+            .lock()
+            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
+        w.events.as_mut().map(|e| e.finish()).transpose()
+    }
+
     /// Writes what is pending and flushes: the counts, or the first error.
     pub(crate) fn finish(&self) -> Result<BallCounts, SdkError> {
         let mut w = self
@@ -113,6 +227,7 @@ impl BallWriter {
             last,
             error: None,
             counts: BallCounts::default(),
+            events: None,
         }
     }
 
@@ -164,6 +279,10 @@ impl BallWriter {
             if let Some(f) = self.fuser.as_mut() {
                 self.out.push(f.fuse(&self.group));
             }
+            // The frame set's row: the fused one, or the one camera's.
+            if let (Some(e), Some(r)) = (self.events.as_mut(), self.out.last()) {
+                e.push(r);
+            }
         }
         for r in &self.out {
             match r.status {
@@ -179,6 +298,9 @@ impl BallWriter {
             }
         }
         self.pending.drain(..n);
+        if let Some(e) = self.events.as_mut() {
+            e.write();
+        }
     }
 }
 

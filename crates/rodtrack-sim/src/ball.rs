@@ -200,6 +200,32 @@ impl Ctx {
 }
 
 impl Simulation {
+    /// The ball's events as scripted (scenario `goals`), each at the first frame whose
+    /// mid-exposure time is at or after the event's time, within the simulation's frames:
+    /// what `rodtrack simulate` writes to `events_truth.jsonl`.
+    pub fn events_truth(&self) -> Vec<rodtrack_core::ball::events::BallEvent> {
+        let fps = self.ctx.scenario.fps;
+        let exp = self
+            .ctx
+            .cameras
+            .first()
+            .map_or(0.0, |c| c.exposure_us * 1e-6);
+        let n = self.frame_count() as u64;
+        self.ctx
+            .scenario
+            .events
+            .iter()
+            .filter_map(|&(t, kind)| {
+                let f = ((t - 0.5 * exp) * fps - 1e-9).ceil().max(0.0) as u64;
+                (f < n).then_some(rodtrack_core::ball::events::BallEvent {
+                    frame: f,
+                    timestamp_ns: frame_time(f, fps),
+                    kind,
+                })
+            })
+            .collect()
+    }
+
     /// The ball's truth for frame `frame_index` (table frame); `None` without a ball.
     pub fn ball_truth(&self, frame_index: usize) -> Option<BallTruthRow> {
         self.ctx.ball_truth(frame_index)

@@ -56,6 +56,7 @@ pub mod build;
 pub mod cameras;
 pub mod error;
 pub mod geom;
+mod goals;
 mod inputs;
 pub mod motion;
 mod raster;

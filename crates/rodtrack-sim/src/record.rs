@@ -14,6 +14,8 @@
 //! - `ball_truth.csv` (scenarios with a ball): per frame written, the ball's centre and
 //!   velocity in the table frame and the fraction of it each camera sees
 //!   ([`crate::ball::BallTruthRow`]);
+//! - `events_truth.jsonl` (scenarios with scripted events, `goals`): the ball's events as
+//!   scripted, in the format of `track --events-out` ([`crate::Simulation::events_truth`]);
 //! - `<cam>_ref/NNNNNN.png` also holds the ball's calibration frame (rods at their reference
 //!   poses, the ball between two rods) named in the inputs' `ball.frame`;
 //! - `sim.json`: the scene, cameras, scenario, seed and frames that made it.
@@ -307,6 +309,15 @@ pub fn write_recording(
     truth.flush().map_err(|e| io_err(&tp, e))?;
     if let Some((bp, mut w)) = ball_truth {
         w.flush().map_err(|e| io_err(&bp, e))?;
+    }
+    if !sim.ctx.scenario.events.is_empty() {
+        let ep = out_dir.join("events_truth.jsonl");
+        let mut text = String::new();
+        for e in sim.events_truth() {
+            e.push_json(&mut text);
+            text.push('\n');
+        }
+        fs::write(&ep, text).map_err(|e| io_err(&ep, e))?;
     }
     Ok(RecordSummary {
         frames: total,

@@ -52,16 +52,37 @@ impl HandPass {
     }
 }
 
-/// The ball's path on the field: linear between keypoints `(t_s, x_mm, y_mm)`.
+/// The ball's path on the field: linear between keypoints `(t_s, x_mm, y_mm)`, absent
+/// (in a goal, off the table, in a hand) during the `hidden` intervals.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct BallPath {
     /// Keypoints in time order.
     pub keys: Vec<(f64, f64, f64)>,
+    /// Intervals `[t0_s, t1_s)` without a ball.
+    #[serde(default)]
+    pub hidden: Vec<(f64, f64)>,
 }
 
 impl BallPath {
-    /// Ball centre `(x, y)` at `t_s` (held before the first and after the last keypoint).
+    /// A path through `keys`, never hidden.
+    pub fn new(keys: Vec<(f64, f64, f64)>) -> BallPath {
+        BallPath {
+            keys,
+            hidden: Vec::new(),
+        }
+    }
+
+    /// True when there is no ball at `t_s`.
+    pub fn is_hidden(&self, t_s: f64) -> bool {
+        self.hidden.iter().any(|&(a, b)| t_s >= a && t_s < b)
+    }
+
+    /// Ball centre `(x, y)` at `t_s` (held before the first and after the last keypoint);
+    /// `None` while hidden.
     pub fn at(&self, t_s: f64) -> Option<(f64, f64)> {
+        if self.is_hidden(t_s) {
+            return None;
+        }
         let first = self.keys.first()?;
         if t_s <= first.0 {
             return Some((first.1, first.2));
@@ -105,6 +126,11 @@ pub struct Scenario {
     pub hands: Vec<HandPass>,
     /// Optional ball.
     pub ball: Option<BallPath>,
+    /// The ball's events as scripted (`goals`): `(t_s, event)`, the time at which each
+    /// happens (a goal's crossing of the line, a kick, the start of a rest, the last moment
+    /// seen before the ball leaves the table).
+    #[serde(default)]
+    pub events: Vec<(f64, rodtrack_core::ball::events::EventKind)>,
     /// Lighting that replaces the scene's (gradient, glare), if any.
     pub lighting: Option<Lighting>,
     /// Brightness factor over time (1 = the camera's brightness).
@@ -114,9 +140,9 @@ pub struct Scenario {
 }
 
 /// Names accepted by [`Scenario::by_name`].
-pub const SCENARIO_NAMES: [&str; 12] = [
+pub const SCENARIO_NAMES: [&str; 13] = [
     "exp1", "exp2", "exp3", "spin600", "spin3000", "lighting", "gameplay", "sweep", "static",
-    "poses", "ball", "hands",
+    "poses", "ball", "hands", "goals",
 ];
 
 impl Scenario {
@@ -129,6 +155,7 @@ impl Scenario {
             rods: vec![RodMotion::default(); scene.rods.len()],
             hands: vec![],
             ball: None,
+            events: Vec::new(),
             lighting: None,
             brightness: Track::constant(1.0),
             glare: Track::constant(0.0),
@@ -298,6 +325,13 @@ impl Scenario {
                 }
                 s.ball = Some(rolling_ball(&mut rng, scene, end, 2000.0));
             }
+            "goals" => {
+                // Shots from the figures' feet at 2.5 to 6 m/s: goals for both sides (the ball
+                // put back at the centre), a miss bouncing off an end wall to rest, a rebound
+                // out of a goal, a ball leaving the table; the truth events in `events`.
+                end = 24.0;
+                crate::goals::script(&mut rng, scene, &mut s, end);
+            }
             "hands" => {
                 // Hands and moving figures, no ball: for false detections.
                 end = 30.0;
@@ -438,7 +472,7 @@ fn ball_path(rng: &mut Rng, scene: &SceneConfig, end: f64) -> BallPath {
             rng.range(m, scene.field_width_mm - m),
         ));
     }
-    BallPath { keys }
+    BallPath::new(keys)
 }
 
 /// A ball rolling in straight lines at up to `v_max_mm_s`, reflected by the walls, with a new
@@ -497,7 +531,7 @@ fn rolling_ball(rng: &mut Rng, scene: &SceneConfig, end: f64, v_max_mm_s: f64) -
             keys.push((t, p[0], p[1]));
         }
     }
-    BallPath { keys }
+    BallPath::new(keys)
 }
 
 #[cfg(test)]

@@ -54,6 +54,20 @@ pub fn run(args: Args) -> Result<()> {
         );
         cals.push(cal);
     }
+    // With scripted ball events (scenario `goals`): the ball and its events too, with the
+    // cameras' table frame and ball calibrated from the same clicks.
+    let truth_events = sim.events_truth();
+    let ball_cal = if truth_events.is_empty() {
+        None
+    } else {
+        Some(rodtrack_core::calib::CalibrationFile {
+            version: rodtrack_core::calib::CALIBRATION_VERSION,
+            cameras: (0..ncam)
+                .map(|c| sim.calibrated_camera_with_ball(c, args.seed))
+                .collect::<Result<_, _>>()?,
+        })
+    };
+    let found_events = rodtrack_io::EventVecSink::default();
     // 2. Track every frame in both modes, rodtrack's and the paper's, on the same frames: the
     // simulated cameras through a session, the paper's algorithm in its frame hook.
     let console = match args.console {
@@ -108,6 +122,7 @@ pub fn run(args: Args) -> Result<()> {
             paper: true,
             hooks,
             on_rows: Some(on_rows),
+            events: ball_cal.as_ref().map(|c| (c, found_events.clone())),
         },
     )?;
     let loop_s = t_loop.elapsed().as_secs_f64();
@@ -147,6 +162,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     println!("\nthe paper's algorithm on the same frames (paper mode):");
     print!("{}", format_table(&score(&truth, &with_none(&rows.paper))));
+    if ball_cal.is_some() {
+        print_events(&truth_events, &found_events.events());
+    }
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
     if let Some(con) = console {
         println!("web console still at {}: press Ctrl-C to quit", con.url());
@@ -157,6 +175,32 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The goals found against the scenario's, and the final scores.
+fn print_events(
+    truth: &[rodtrack_core::ball::events::BallEvent],
+    found: &[rodtrack_core::ball::events::BallEvent],
+) {
+    use rodtrack_core::ball::events::{match_events, EventKind};
+    let score = |events: &[rodtrack_core::ball::events::BallEvent]| {
+        events
+            .iter()
+            .filter_map(|e| match e.kind {
+                EventKind::Goal { score, .. } => Some(score),
+                _ => None,
+            })
+            .next_back()
+            .unwrap_or([0, 0])
+    };
+    let goals = match_events(truth, found, "goal", 20);
+    let shots = match_events(truth, found, "shot", 20);
+    let (st, sf) = (score(truth), score(found));
+    println!(
+        "\nthe ball's events: goals {} of {} found, {} false; score {}:{} (truth {}:{}); shots {} of {} found, {} false",
+        goals.found, goals.truth, goals.false_events, sf[0], sf[1], st[0], st[1],
+        shots.found, shots.truth, shots.false_events
+    );
 }
 
 /// Writes each `ok` row's error against the truth (`RODTRACK_ERRORS_CSV=path`, for analysis).

@@ -1,6 +1,9 @@
-//! `rodtrack score`: measurements against ground truth (scored by [`rodtrack_eval::score`]).
+//! `rodtrack score`: measurements against ground truth (scored by [`rodtrack_eval::score`]),
+//! and the ball's events against the truth's (paired by
+//! [`rodtrack_core::ball::events::match_events`]).
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
+use rodtrack_core::ball::events::{match_events, BallEvent, EventKind};
 use rodtrack_core::CameraId;
 use rodtrack_eval::score::{format_table, read_rows, score};
 use std::path::PathBuf;
@@ -9,11 +12,21 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Ground truth (CSV with a `visible` column, as `rodtrack simulate` writes).
-    #[arg(long)]
-    pub truth: PathBuf,
+    #[arg(long, requires = "measured")]
+    pub truth: Option<PathBuf>,
     /// Measurements (CSV or JSON Lines).
-    #[arg(long)]
-    pub measured: PathBuf,
+    #[arg(long, requires = "truth")]
+    pub measured: Option<PathBuf>,
+    /// The truth's events (`events_truth.jsonl`, as `rodtrack simulate` writes).
+    #[arg(long, requires = "events")]
+    pub events_truth: Option<PathBuf>,
+    /// The events found (`track --events-out`), scored against --events-truth.
+    #[arg(long, requires = "events_truth")]
+    pub events: Option<PathBuf>,
+    /// Events within this many frames of the truth's are the same event (0.15 s at 200 fps:
+    /// a ball slowing to rest is within the stop's 5 mm some frames before it rests).
+    #[arg(long, default_value_t = 30)]
+    pub events_tolerance_frames: u64,
     /// Write the table as JSON here too.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -21,8 +34,22 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    let truth = read_rows(&args.truth)?;
-    let measured = read_rows(&args.measured)?;
+    if let (Some(t), Some(f)) = (&args.events_truth, &args.events) {
+        let truth = rodtrack_io::read_events_jsonl(t)?;
+        let found = rodtrack_io::read_events_jsonl(f)?;
+        print!(
+            "{}",
+            events_table(&truth, &found, args.events_tolerance_frames)
+        );
+    }
+    let (Some(truth), Some(measured)) = (&args.truth, &args.measured) else {
+        if args.events.is_none() {
+            bail!("give --truth and --measured (rows), or --events-truth and --events");
+        }
+        return Ok(());
+    };
+    let truth = read_rows(truth)?;
+    let measured = read_rows(measured)?;
     // Camera rows and fused rows are scored apart (fused rows have their own coverage).
     let (fused, cams): (Vec<_>, Vec<_>) = measured
         .into_iter()
@@ -47,4 +74,66 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(())
+}
+
+/// The events found against the truth's, per kind: truth, found, missed, false; the final
+/// scores; the shots' rods and speeds.
+fn events_table(truth: &[BallEvent], found: &[BallEvent], tolerance_frames: u64) -> String {
+    let mut out = format!("events (within {tolerance_frames} frames):\n");
+    out.push_str("event          truth  found  missed  false\n");
+    for name in ["goal", "shot", "ball_out", "ball_stopped"] {
+        let m = match_events(truth, found, name, tolerance_frames);
+        out.push_str(&format!(
+            "{name:<13} {:>6} {:>6} {:>7} {:>6}\n",
+            m.truth, m.found, m.missed, m.false_events
+        ));
+        if name == "shot" && !m.pairs.is_empty() {
+            let (mut rods, mut worst) = (0usize, 0.0f64);
+            for &(i, j) in &m.pairs {
+                if let (
+                    EventKind::Shot {
+                        rod: rt,
+                        speed_mm_s: st,
+                        ..
+                    },
+                    EventKind::Shot {
+                        rod: rf,
+                        speed_mm_s: sf,
+                        ..
+                    },
+                ) = (truth[i].kind, found[j].kind)
+                {
+                    rods += usize::from(rt == rf);
+                    if st > 0.0 {
+                        worst = worst.max(((sf - st) / st).abs());
+                    }
+                }
+            }
+            out.push_str(&format!(
+                "  shots paired: rod right {rods}/{}, speed error at most {:.1} %\n",
+                m.pairs.len(),
+                100.0 * worst
+            ));
+        }
+    }
+    let last_score = |events: &[BallEvent]| {
+        events
+            .iter()
+            .filter_map(|e| match e.kind {
+                EventKind::Goal { score, .. } => Some(score),
+                _ => None,
+            })
+            .next_back()
+            .unwrap_or([0, 0])
+    };
+    let (st, sf) = (last_score(truth), last_score(found));
+    out.push_str(&format!(
+        "final score (a:b): {}:{} found, {}:{} truth{}\n",
+        sf[0],
+        sf[1],
+        st[0],
+        st[1],
+        if st == sf { "" } else { "  <- differs" }
+    ));
+    out
 }

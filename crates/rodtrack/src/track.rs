@@ -60,6 +60,18 @@ pub struct Args {
     /// (table frame, docs/ball.md).
     #[arg(long)]
     pub ball_out: Option<PathBuf>,
+    /// Detect the ball's events (tracking the ball, with or without --ball-out) and write
+    /// them to this JSON Lines file, one object per event: `goal`, `shot`, `ball_out`,
+    /// `ball_stopped` (docs/formats.md). Needs the table frame in the calibration.
+    #[arg(long)]
+    pub events_out: Option<PathBuf>,
+    /// The goal mouth's width, mm (the reference table's 205 by default).
+    #[arg(long)]
+    pub goal_width_mm: Option<f64>,
+    /// The event rules' constants (TOML: any field of the events' configuration, e.g.
+    /// `goal_grace_s = 0.8`, `field_length_mm = 1140`; docs/ball.md); --goal-width-mm wins.
+    #[arg(long)]
+    pub events_config: Option<PathBuf>,
     /// Run as a camera node of a camera network: publish this camera's rows (docs/network.md).
     #[arg(long, value_enum)]
     pub publish: Option<crate::network::NetworkArg>,
@@ -70,6 +82,40 @@ pub struct Args {
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: crate::network::NetArgs,
+}
+
+/// The ball rows of a session that only wants the events: dropped.
+struct NoBallRows;
+
+impl rodtrack_io::BallSink for NoBallRows {
+    fn write(&mut self, _: &[rodtrack_core::ball::BallRow]) -> Result<(), rodtrack_io::IoError> {
+        Ok(())
+    }
+    fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
+        Ok(())
+    }
+}
+
+/// The event rules from `--events-config` and `--goal-width-mm` (the defaults otherwise).
+fn event_config(args: &Args) -> Result<rodtrack_core::ball::events::EventConfig> {
+    let mut cfg = match &args.events_config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the events configuration {}", path.display()))?;
+            toml::from_str(&text)
+                .with_context(|| format!("the events configuration {}", path.display()))?
+        }
+        None => rodtrack_core::ball::events::EventConfig::default(),
+    };
+    if let Some(w) = args.goal_width_mm {
+        cfg.goal_width_mm = w;
+    }
+    if args.events_out.is_none() && (args.events_config.is_some() || args.goal_width_mm.is_some()) {
+        bail!("--events-config and --goal-width-mm set the events' rules: give --events-out FILE");
+    }
+    cfg.validate()
+        .context("the events' rules (--events-config, --goal-width-mm)")?;
+    Ok(cfg)
 }
 
 /// Parses `FRAME:ROD:TURNS`.
@@ -144,6 +190,12 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(b) = &args.ball_out {
         check_out_is_not_an_input(b, &[&args.calib, &out])?;
     }
+    if let Some(e) = &args.events_out {
+        let mut taken: Vec<&std::path::Path> = vec![&args.calib, &out];
+        taken.extend(args.ball_out.as_deref());
+        check_out_is_not_an_input(e, &taken)?;
+    }
+    let events_config = event_config(&args)?;
     let mut cal = read_calibration(&args.calib)?;
     let mode = args.mode.into();
     if args.publish.is_some() {
@@ -196,6 +248,16 @@ pub fn run(args: Args) -> Result<()> {
         let sink = rodtrack_io::BallCsvSink::create(path)
             .with_context(|| format!("creating the ball output {}", path.display()))?;
         session = session.with_ball(&cal, Box::new(sink))?;
+    }
+    if let Some(path) = &args.events_out {
+        if args.ball_out.is_none() {
+            session = session.with_ball(&cal, Box::new(NoBallRows))?;
+        }
+        let sink = rodtrack_io::EventJsonlSink::create(path)
+            .with_context(|| format!("creating the events output {}", path.display()))?;
+        session = session
+            .with_events(&cal, events_config, Box::new(sink))
+            .with_context(|| format!("detecting the events for {}", path.display()))?;
     }
     for cam in session.cameras() {
         print_source_warnings(&cam.label, &*cam.source);
@@ -272,6 +334,18 @@ pub fn run(args: Args) -> Result<()> {
             b.ok,
             b.predicted,
             b.lost
+        );
+    }
+    if let (Some(path), Some(e)) = (&args.events_out, report.events) {
+        println!(
+            "wrote {}: {} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
+            path.display(),
+            e.goals,
+            e.score[0],
+            e.score[1],
+            e.shots,
+            e.ball_out,
+            e.ball_stopped
         );
     }
     match &args.out {

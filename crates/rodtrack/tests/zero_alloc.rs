@@ -1,11 +1,12 @@
 //! The per-frame hot path allocates nothing: a counting global allocator watches both cameras'
 //! pipelines (every rod, enhanced and paper mode), the filter + fusion and each camera's ball
-//! tracker over simulated gameplay frames (the ball rolls and is kicked among the figures),
-//! after a warm-up in which the output vectors reach their size.
+//! tracker and the ball's event detector over simulated gameplay frames (the ball rolls and is
+//! kicked among the figures), after a warm-up in which the output vectors reach their size.
 //!
 //! This file holds a single test, so no other test's allocations can be counted.
 #![allow(missing_docs, clippy::unwrap_used)]
 
+use rodtrack_core::ball::events::{EventConfig, EventDetector, TableGeometry};
 use rodtrack_core::ball::{BallStatus, BallTracker};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraPipeline, FrameSetFilter, FrameView, Mode};
@@ -118,6 +119,9 @@ fn per_frame_processing_allocates_nothing() {
             .map(|c| BallTracker::new(&c.ball_calibration).unwrap().unwrap())
             .collect();
         let mut ball_ok = 0usize;
+        let mut events =
+            EventDetector::new(TableGeometry::reference(), EventConfig::default()).unwrap();
+        let mut decided = Vec::with_capacity(16);
         let mut filter = FrameSetFilter::new(mode, true);
         let mut raw = Vec::with_capacity(64);
         let mut filtered = Vec::with_capacity(64);
@@ -125,12 +129,18 @@ fn per_frame_processing_allocates_nothing() {
         let mut step = |f: usize| {
             raw.clear();
             filtered.clear();
-            for ((pipe, ball), cam) in pipes.iter_mut().zip(&mut balls).zip(&cams) {
+            decided.clear();
+            for (i, ((pipe, ball), cam)) in pipes.iter_mut().zip(&mut balls).zip(&cams).enumerate()
+            {
                 let (w, h, stride, fmt) = cam.geometry;
                 let view = FrameView::new(&cam.frames[f], w, h, stride, fmt).unwrap();
                 let t = rodtrack_core::Timestamp::from_frame(f as u64, 200.0);
                 pipe.process(&view, f as u64, t, &mut raw).unwrap();
-                ball_ok += (ball.process(&view, f as u64, t).status == BallStatus::Ok) as usize;
+                let row = ball.process(&view, f as u64, t);
+                ball_ok += (row.status == BallStatus::Ok) as usize;
+                if i == 0 {
+                    events.push(&row, &mut decided);
+                }
             }
             filter.process(&raw, &mut filtered);
             ok_rows += raw

@@ -7,10 +7,13 @@
 //!   ball's expected size, edge points on rays from its centre (only where the field's colour
 //!   lies beyond), and the sphere's centre at `z = radius` fitted to the edge points' rays.
 //! - [`track`]: the constant-velocity filter, statuses `ok`, `predicted`, `lost`.
+//! - [`events`]: goals (with the score), shots, ball out, ball stopped, from one ball row per
+//!   frame set.
 //! - [`tuning`]: the constants.
 
 pub mod colour;
 pub mod detect;
+pub mod events;
 pub mod fuse;
 pub mod track;
 pub mod tuning;

@@ -8,11 +8,13 @@
 
 mod ball;
 mod csv;
+mod events;
 mod jsonl;
 mod udp;
 
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
 pub use ball::{BallCsvSink, BallSink, BallVecSink};
+pub use events::{parse_event_json, read_events_jsonl, EventJsonlSink, EventSink, EventVecSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
     decode_udp_packet, encode_udp_packet, push_row_motion, status_code, status_from_code,

@@ -37,7 +37,7 @@
 
 mod run;
 
-use crate::ball::{BallCounts, BallStage};
+use crate::ball::{BallCounts, BallStage, EventCounts};
 use crate::control::SessionControl;
 use crate::health::{health_lines, RodHealth};
 use crate::hooks::{Hooks, NoHooks};
@@ -267,6 +267,39 @@ impl Session {
         Ok(self)
     }
 
+    /// Detects the ball's events too (goals with the score, shots, ball out, ball stopped:
+    /// [`rodtrack_core::ball::events`]) from each frame set's ball row (the `fused` row with
+    /// several cameras), with the table of `cal` (its field, goal mouths and rods'
+    /// axes: [`rodtrack_core::ball::events::TableGeometry::from_calibration`]) and the rules
+    /// `cfg`; they go to `sink` as they are decided. Needs [`Session::with_ball`] first; fails
+    /// when the calibration has no table frame or `cfg` is invalid.
+    ///
+    /// ```no_run
+    /// use rodtrack_sdk::{Session, SessionOptions};
+    /// let cal = rodtrack_sdk::read_calibration("table.toml".as_ref())?;
+    /// let events = rodtrack_io::EventVecSink::default();
+    /// let session = Session::open(&cal, &["rec/cam0", "rec/cam1"], SessionOptions::default())?
+    ///     .with_ball(&cal, Box::new(rodtrack_io::BallVecSink::default()))?
+    ///     .with_events(&cal, Default::default(), Box::new(events.clone()))?;
+    /// let (report, _) = session.run(rodtrack_io::VecSink::default())?;
+    /// println!("score {:?}: {:?}", report.events.map(|e| e.score), events.events());
+    /// # Ok::<(), rodtrack_sdk::SdkError>(())
+    /// ```
+    pub fn with_events(
+        mut self,
+        cal: &CalibrationFile,
+        cfg: rodtrack_core::ball::events::EventConfig,
+        sink: Box<dyn rodtrack_io::EventSink>,
+    ) -> Result<Session, SdkError> {
+        let Some(ball) = self.ball.as_mut() else {
+            return Err(SdkError::Invalid(
+                "the events need the ball: call `with_ball` before `with_events`".into(),
+            ));
+        };
+        ball.set_events(cal, cfg, sink)?;
+        Ok(self)
+    }
+
     /// A handle to send commands to the session while it runs (re-anchoring a rod's turn
     /// count, see [`SessionControl`]); the commands reach the temporal filter, so they do
     /// nothing with [`SessionOptions::filter`] false.
@@ -455,6 +488,8 @@ pub struct RunReport {
     pub rods: Vec<RodHealth>,
     /// The ball rows written, when the session tracked the ball ([`Session::with_ball`]).
     pub ball: Option<BallCounts>,
+    /// The events written, when the session detected them ([`Session::with_events`]).
+    pub events: Option<EventCounts>,
 }
 
 impl RunReport {

@@ -282,7 +282,11 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
         .map(|t| t.histogram.lock().map(|h| h.summary()).unwrap_or_default())
         .collect();
     let rods = crate::health::merge(&health, &sink);
-    let ball = ball.as_ref().map(|b| b.finish()).transpose()?;
+    let ball_counts = ball.as_ref().map(|b| b.finish()).transpose()?;
+    let events = match ball.as_ref() {
+        Some(b) => b.finish_events()?,
+        None => None,
+    };
     Ok((
         RunReport {
             pipeline: report,
@@ -290,7 +294,8 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
             config,
             warnings: warnings.load(Ordering::Relaxed),
             rods,
-            ball,
+            ball: ball_counts,
+            events,
         },
         sink.inner,
     ))

@@ -1,0 +1,208 @@
+//! The ball's events end to end on the simulator: scenario `goals` (shots, goals for both
+//! sides, misses bouncing off the end walls, a ball leaving the table), calibrated from the
+//! simulated clicks, tracked by a session with the ball and the events, against the
+//! scenario's truth events.
+
+#![allow(clippy::unwrap_used)]
+
+use rodtrack_core::ball::events::{match_events, BallEvent, EventConfig, EventKind, TableGeometry};
+use rodtrack_core::calib::{CalibrationFile, CALIBRATION_VERSION};
+use rodtrack_core::{CameraPipeline, Mode};
+use rodtrack_io::{BallVecSink, EventVecSink, VecSink};
+use rodtrack_sdk::{EventCounts, Session, SessionCamera, SessionOptions};
+use rodtrack_sim::{build_simulation, SimSource, Simulation};
+
+/// Calibrates every camera of `sim` from its simulated clicks, reference frame and ball frame.
+fn calibrate(sim: &mut Simulation, seed: u64) -> CalibrationFile {
+    CalibrationFile {
+        version: CALIBRATION_VERSION,
+        cameras: (0..sim.cameras().len())
+            .map(|cam| sim.calibrated_camera_with_ball(cam, seed).unwrap())
+            .collect(),
+    }
+}
+
+/// The events of a session over every frame of `sim`, and the session's counts.
+fn track_events(sim: &Simulation, cal: &CalibrationFile) -> (Vec<BallEvent>, EventCounts) {
+    let sources = SimSource::for_simulation(sim, Default::default()).unwrap();
+    let cameras = sources
+        .into_iter()
+        .zip(&cal.cameras)
+        .map(|(s, c)| SessionCamera {
+            label: format!("camera {}", c.index),
+            source: Box::new(s),
+            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
+        })
+        .collect();
+    let events = EventVecSink::default();
+    let session = Session::from_cameras(cameras, SessionOptions::default())
+        .with_ball(cal, Box::new(BallVecSink::default()))
+        .unwrap()
+        .with_events(cal, EventConfig::default(), Box::new(events.clone()))
+        .unwrap();
+    let (report, _) = session.run(VecSink::default()).unwrap();
+    (events.events(), report.events.unwrap())
+}
+
+/// Goals within 0.1 s of the truth's crossing, shots and stops within 0.15 s, outs within
+/// 0.1 s (at 200 fps).
+const GOAL_TOLERANCE_FRAMES: u64 = 20;
+const SHOT_TOLERANCE_FRAMES: u64 = 30;
+const STOP_TOLERANCE_FRAMES: u64 = 30;
+const OUT_TOLERANCE_FRAMES: u64 = 20;
+
+#[test]
+fn goals_scenario_every_goal_found_and_the_score_right() {
+    goals_run(7, "default");
+}
+
+/// More seeds and as-built setups (cameras tilted and shifted, other lenses, rods off their
+/// places): about 100 s each in release, so not in the default run
+/// (`cargo test --release -p rodtrack-sdk --test events -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn goals_scenario_over_seeds_and_as_built_setups() {
+    for (seed, setup) in [(11, "default"), (12, "asbuilt:12"), (13, "asbuilt:13")] {
+        eprintln!("seed {seed}, setup {setup}:");
+        goals_run(seed, setup);
+    }
+}
+
+/// Scenario `goals` with `seed` on `setup`, tracked and scored: every goal found, none false,
+/// the final score the truth's; shots, stops and outs as guarded below.
+fn goals_run(seed: u64, setup: &str) {
+    let mut sim = build_simulation("goals", None, seed, false, setup).unwrap();
+    let truth = sim.events_truth();
+    let cal = calibrate(&mut sim, seed);
+    let (found, counts) = track_events(&sim, &cal);
+    if std::env::var_os("RODTRACK_PRINT_EVENTS").is_some() {
+        for e in &truth {
+            eprintln!("truth: {}", e.json_line());
+        }
+        for e in &found {
+            eprintln!("found: {}", e.json_line());
+        }
+    }
+    let truth_score = truth
+        .iter()
+        .filter_map(|e| match e.kind {
+            EventKind::Goal { score, .. } => Some(score),
+            _ => None,
+        })
+        .next_back()
+        .unwrap();
+    let goals = match_events(&truth, &found, "goal", GOAL_TOLERANCE_FRAMES);
+    let shots = match_events(&truth, &found, "shot", SHOT_TOLERANCE_FRAMES);
+    let stops = match_events(&truth, &found, "ball_stopped", STOP_TOLERANCE_FRAMES);
+    let outs = match_events(&truth, &found, "ball_out", OUT_TOLERANCE_FRAMES);
+    for (name, m) in [
+        ("goals", &goals),
+        ("shots", &shots),
+        ("ball_stopped", &stops),
+        ("ball_out", &outs),
+    ] {
+        eprintln!(
+            "{name}: truth {}, found {}, missed {}, false {}",
+            m.truth, m.found, m.missed, m.false_events
+        );
+    }
+    // The shots' rods and speeds.
+    let (mut rod_right, mut speed_err) = (0, Vec::new());
+    for &(i, j) in &shots.pairs {
+        if let (
+            EventKind::Shot {
+                rod: rt,
+                speed_mm_s: st,
+                ..
+            },
+            EventKind::Shot {
+                rod: rf,
+                speed_mm_s: sf,
+                ..
+            },
+        ) = (truth[i].kind, found[j].kind)
+        {
+            rod_right += usize::from(rt == rf);
+            speed_err.push((sf - st) / st);
+        }
+    }
+    let worst_speed = speed_err.iter().fold(0.0f64, |a, e| a.max(e.abs()));
+    eprintln!(
+        "shots: rod right {rod_right}/{}, speed error worst {:.1} %, score {:?} (truth {:?})",
+        shots.pairs.len(),
+        100.0 * worst_speed,
+        counts.score,
+        truth_score
+    );
+    assert!(
+        goals.truth >= 6,
+        "the scenario scores goals: {}",
+        goals.truth
+    );
+    assert!(
+        truth_score[0] >= 2 && truth_score[1] >= 2,
+        "goals for both sides: {truth_score:?}"
+    );
+    assert_eq!(goals.missed, 0, "missed goals");
+    assert_eq!(goals.false_events, 0, "false goals");
+    assert_eq!(counts.score, truth_score, "the final score");
+    assert_eq!(counts.goals as usize, goals.truth);
+    // Shots: found and credited to the right rod (guarded below what was measured).
+    assert!(
+        shots.found * 10 >= shots.truth * 9 && shots.false_events == 0,
+        "shots: {shots:?}"
+    );
+    assert!(
+        rod_right * 10 >= shots.found * 9,
+        "rods: {rod_right}/{}",
+        shots.found
+    );
+    assert!(worst_speed <= 0.03, "the issue's speed target: 3 %");
+    assert_eq!((outs.missed, outs.false_events), (0, 0), "ball out");
+    assert_eq!((stops.missed, stops.false_events), (0, 0), "ball stopped");
+}
+
+/// The table the events see, from a simulated calibration: every rod's axis within 3 mm of the
+/// simulator's (table frame), the reference field; a session asked for events without the ball
+/// is refused, naming the order.
+#[test]
+fn the_table_s_rods_come_from_the_calibration() {
+    let seed = 3;
+    let mut sim = build_simulation("static", Some(2), seed, false, "default").unwrap();
+    let cal = calibrate(&mut sim, seed);
+    let geom = TableGeometry::from_calibration(&cal, &EventConfig::default()).unwrap();
+    let scene = sim.scene();
+    assert_eq!(geom.rods.len(), scene.rods.len(), "{:?}", geom.rods);
+    for (&(rod, x), truth) in geom.rods.iter().zip(&scene.rods) {
+        let want = truth.x_mm - 0.5 * scene.field_length_mm;
+        eprintln!("rod {rod}: axis x {x:.2} mm, truth {want:.2} mm");
+        assert!((x - want).abs() < 3.0, "rod {rod}: {x:.2} vs {want:.2}");
+    }
+    assert_eq!((geom.x_min_mm, geom.x_max_mm), (-600.0, 600.0));
+    // A field configured too small for the clicked corners is refused.
+    let small = EventConfig {
+        field_length_mm: 1000.0,
+        ..EventConfig::default()
+    };
+    let err = TableGeometry::from_calibration(&cal, &small).unwrap_err();
+    assert!(err.to_string().contains("field"), "{err}");
+    let sources = SimSource::for_simulation(&sim, Default::default()).unwrap();
+    let cameras = sources
+        .into_iter()
+        .zip(&cal.cameras)
+        .map(|(s, c)| SessionCamera {
+            label: format!("camera {}", c.index),
+            source: Box::new(s),
+            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
+        })
+        .collect();
+    let err = Session::from_cameras(cameras, SessionOptions::default())
+        .with_events(
+            &cal,
+            EventConfig::default(),
+            Box::new(EventVecSink::default()),
+        )
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("with_ball"), "{err}");
+}

@@ -1,0 +1,125 @@
+//! `track --events-out` from the command line: scenario `goals` simulated (its calibration
+//! inputs and truth events), both cameras calibrated, the first second tracked from `sim://`
+//! sources; the events file against the truth's, `score --events-truth`; bad arguments.
+#![allow(missing_docs, clippy::unwrap_used)]
+
+mod common;
+
+use common::rodtrack;
+use rodtrack_core::ball::events::EventKind;
+use std::path::Path;
+
+#[test]
+fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("events_cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    let rec = dir.join("rec");
+    // Only frame 0's images (the calibration's), the truth events of the whole timeline.
+    let o = rodtrack(&[
+        "simulate",
+        "--scenario",
+        "goals",
+        "--seed",
+        "3",
+        "--every",
+        "100000",
+        "--out",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cal = dir.join("cal.toml");
+    let o = rodtrack(&[
+        "calibrate",
+        "--inputs",
+        rec.join("cam0.json").to_str().unwrap(),
+        "--inputs",
+        rec.join("cam1.json").to_str().unwrap(),
+        "--out",
+        cal.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let events = dir.join("events.jsonl");
+    let rows = dir.join("rows.csv");
+    let o = rodtrack(&[
+        "track",
+        "--calib",
+        cal.to_str().unwrap(),
+        "--input",
+        "sim://goals?camera=0&seed=3&frames=200",
+        "--input",
+        "sim://goals?camera=1&seed=3&frames=200",
+        "--out",
+        rows.to_str().unwrap(),
+        "--events-out",
+        events.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("1 goal(s), score 1:0"), "{stdout}");
+    let truth = rodtrack_io::read_events_jsonl(&rec.join("events_truth.jsonl")).unwrap();
+    let found = rodtrack_io::read_events_jsonl(&events).unwrap();
+    let early: Vec<_> = truth.iter().filter(|e| e.frame < 200).collect();
+    // The first play: a shot by rod 3, a goal for side A at the crossing's frame.
+    assert_eq!(early.len(), 2, "{early:?}");
+    assert_eq!(found.len(), 2, "{found:?}");
+    for (t, f) in early.iter().zip(&found) {
+        assert_eq!(t.kind.name(), f.kind.name());
+        assert!(t.frame.abs_diff(f.frame) <= 2, "{t:?} vs {f:?}");
+        match (t.kind, f.kind) {
+            (EventKind::Shot { rod: a, .. }, EventKind::Shot { rod: b, .. }) => assert_eq!(a, b),
+            (EventKind::Goal { score: a, .. }, EventKind::Goal { score: b, .. }) => {
+                assert_eq!(a, b)
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+    let o = rodtrack(&[
+        "score",
+        "--events-truth",
+        rec.join("events_truth.jsonl").to_str().unwrap(),
+        "--events",
+        events.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("final score (a:b): 1:0 found"), "{stdout}");
+    // The rules checked before any frame is read; the events need --events-out.
+    let bad = rodtrack(&[
+        "track",
+        "--calib",
+        cal.to_str().unwrap(),
+        "--input",
+        "sim://goals?camera=0&seed=3&frames=2",
+        "--input",
+        "sim://goals?camera=1&seed=3&frames=2",
+        "--out",
+        rows.to_str().unwrap(),
+        "--events-out",
+        events.to_str().unwrap(),
+        "--goal-width-mm",
+        "700",
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("goal_width_mm"),
+        "{err}"
+    );
+    let bad = rodtrack(&[
+        "track",
+        "--calib",
+        cal.to_str().unwrap(),
+        "--input",
+        "sim://goals?camera=0&seed=3&frames=2",
+        "--input",
+        "sim://goals?camera=1&seed=3&frames=2",
+        "--out",
+        rows.to_str().unwrap(),
+        "--goal-width-mm",
+        "200",
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--events-out"),
+        "{err}"
+    );
+}
