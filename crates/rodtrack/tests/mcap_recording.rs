@@ -7,7 +7,14 @@ mod common;
 
 use common::{rodtrack, two_cameras};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// The suite's recording of two cameras (40 frames) and their calibration, made once.
+fn fixture() -> &'static (PathBuf, PathBuf) {
+    static F: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    F.get_or_init(|| two_cameras("mcap_recording", 40))
+}
 
 /// `v` with `d` decimals as the files write it (no minus sign on a zero).
 fn fixed(v: f64, d: usize) -> String {
@@ -53,7 +60,7 @@ fn csv_lines(msg: &serde_json::Value) -> Vec<String> {
 
 #[test]
 fn the_recording_holds_every_row_of_the_csv_with_its_channels_and_indexes() {
-    let (dir, calib) = two_cameras("mcap_recording", 40);
+    let (dir, calib) = fixture();
     let (csv, mcap) = (dir.join("rows.csv"), dir.join("rows.mcap"));
     let rec = dir.join("rec");
     let o = rodtrack(&[
@@ -238,7 +245,7 @@ fn the_recording_holds_every_row_of_the_csv_with_its_channels_and_indexes() {
 
 #[test]
 fn a_recording_alone_is_an_output_and_a_bad_path_is_named() {
-    let (dir, calib) = two_cameras("mcap_alone", 4);
+    let (dir, calib) = fixture();
     let rec = dir.join("rec");
     let mcap = dir.join("only.mcap");
     let args = |out: &Path| {
@@ -252,6 +259,8 @@ fn a_recording_alone_is_an_output_and_a_bad_path_is_named() {
             rec.join("cam1").display().to_string(),
             "--mcap".into(),
             out.display().to_string(),
+            "--max-frames".into(),
+            "4".into(),
         ]
     };
     let a = args(&mcap);
