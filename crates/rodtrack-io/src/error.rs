@@ -180,6 +180,14 @@ pub enum IoError {
     /// A pipeline's configuration is invalid.
     #[error("pipeline: {0}")]
     Config(String),
+    /// A recording file (MCAP) that cannot be read, or a message that cannot be recorded.
+    #[error("{path}: {reason}")]
+    Recording {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 /// The error of [`crate::FrameSource`]s.

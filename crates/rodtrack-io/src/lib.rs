@@ -8,6 +8,8 @@
 //! - [`source`]: the [`FrameSource`] trait, [`ImageSequence`], [`RawSource`], input strings and
 //!   the [`SourceFactory`];
 //! - [`sink`]: the [`MeasurementSink`] trait, [`CsvSink`], [`JsonlSink`], [`UdpSink`], readers;
+//! - [`mcap`]: MCAP recordings (rows, joint states, frames) for Foxglove and Rerun, and their
+//!   reader;
 //! - [`runtime`]: capture threads, bounded queues, per-camera processing, frame-set grouping,
 //!   latency statistics.
 
@@ -17,6 +19,7 @@ extern crate self as rodtrack_io;
 
 pub mod error;
 pub mod frame;
+pub mod mcap;
 pub mod runtime;
 pub mod sink;
 pub mod source;

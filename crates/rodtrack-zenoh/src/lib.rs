@@ -22,7 +22,8 @@
 //!   key expressions, publishing;
 //! - `camera`: a camera node (a sink and hooks for an SDK `Session`);
 //! - `fusion`: the fusion node (the runtime pipeline over the cameras' messages, with the
-//!   same filters and fusion as an in-process session).
+//!   same filters and fusion as an in-process session);
+//! - `replay`: an MCAP recording's rows published again in real time, on the same keys.
 
 #[cfg(feature = "zenoh")]
 pub mod camera;
@@ -34,6 +35,8 @@ pub mod fusion;
 pub mod layout;
 #[cfg(feature = "zenoh")]
 pub mod net;
+#[cfg(feature = "zenoh")]
+pub mod replay;
 
 #[cfg(feature = "zenoh")]
 pub use error::ZenohError;

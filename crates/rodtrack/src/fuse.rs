@@ -46,6 +46,10 @@ pub struct Args {
     /// sets go on without it, marked incomplete.
     #[arg(long, default_value_t = 3.0)]
     pub loss_frames: f64,
+    /// Also record every camera's rows, the fused rows and the rods as joints to this MCAP
+    /// file, for Foxglove or Rerun (docs/network.md).
+    #[arg(long)]
+    pub mcap: Option<PathBuf>,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: NetArgs,
@@ -53,11 +57,15 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
-    if args.out.is_none() && args.publish.is_none() {
-        bail!("give --out FILE for the fused rows, or --publish zenoh, or both");
+    if args.out.is_none() && args.publish.is_none() && args.mcap.is_none() {
+        bail!("give --out FILE for the fused rows, or --mcap FILE, or --publish zenoh");
     }
     if let Some(out) = &args.out {
         rodtrack_sdk::check_out_is_not_an_input(out, &[&args.calib])?;
+    }
+    if let Some(m) = &args.mcap {
+        let out = args.out.clone().unwrap_or_default();
+        rodtrack_sdk::check_out_is_not_an_input(m, &[&args.calib, &out])?;
     }
     run_node(args)
 }
@@ -76,7 +84,7 @@ fn run_node(args: Args) -> Result<()> {
     use std::sync::Arc;
 
     let cal = rodtrack_sdk::read_calibration(&args.calib)?;
-    let sink = match &args.out {
+    let mut sink = match &args.out {
         Some(out) => {
             let format = args
                 .format
@@ -85,6 +93,20 @@ fn run_node(args: Args) -> Result<()> {
         }
         None => rodtrack_io::MultiSink::new(),
     };
+    let recording = crate::recording::open(
+        &crate::recording::McapArgs {
+            mcap: args.mcap.clone(),
+            mcap_frames: 0.0,
+        },
+        &args.net.table,
+        cal.cameras
+            .iter()
+            .map(|c| (c.index, c.name.clone()))
+            .collect(),
+    )?;
+    if let Some(r) = &recording {
+        sink.push(Box::new(r.sink()));
+    }
     let options = FusionOptions {
         mode: args.mode.into(),
         grouping: match args.group_by {
@@ -117,6 +139,7 @@ fn run_node(args: Args) -> Result<()> {
     )
     .context("fusion node")?;
     drop(sink);
+    crate::recording::finish(recording.as_ref())?;
     eprint!("{report}");
     eprintln!("{}", report.pipeline);
     if report.pipeline.sink_errors > 0 {

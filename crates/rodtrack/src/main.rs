@@ -11,6 +11,8 @@ mod evaluate;
 mod fuse;
 mod marker;
 mod network;
+mod recording;
+mod replay;
 mod score;
 mod simulate;
 mod track;
@@ -52,6 +54,8 @@ enum Command {
     BenchLatency(bench_latency::Args),
     /// Fusion node of a camera network: fuse the camera nodes' rows (docs/network.md).
     Fuse(fuse::Args),
+    /// Play an MCAP recording's rows back on the camera network in real time.
+    Replay(replay::Args),
 }
 
 #[cfg(feature = "genicam")]
@@ -91,6 +95,7 @@ fn main() {
         Command::BenchFrames(a) => bench_frames::run(a),
         Command::BenchLatency(a) => bench_latency::run(a),
         Command::Fuse(a) => fuse::run(a),
+        Command::Replay(a) => replay::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

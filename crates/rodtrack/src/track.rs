@@ -82,6 +82,9 @@ pub struct Args {
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: crate::network::NetArgs,
+    /// The MCAP recording.
+    #[command(flatten)]
+    pub mcap: crate::recording::McapArgs,
 }
 
 /// The ball rows of a session that only wants the events: dropped.
@@ -184,8 +187,13 @@ pub fn run(args: Args) -> Result<()> {
     let out = args.out.clone().unwrap_or_default();
     match (&args.out, args.publish) {
         (Some(out), _) => check_out_is_not_an_input(out, &[&args.calib])?,
-        (None, None) => bail!("give --out FILE for the measurements (or --publish zenoh)"),
-        (None, Some(_)) => {}
+        (None, None) if args.mcap.mcap.is_none() => {
+            bail!("give --out FILE for the measurements (or --mcap FILE, or --publish zenoh)")
+        }
+        (None, _) => {}
+    }
+    if let Some(m) = &args.mcap.mcap {
+        check_out_is_not_an_input(m, &[&args.calib, &out])?;
     }
     if let Some(b) = &args.ball_out {
         check_out_is_not_an_input(b, &[&args.calib, &out])?;
@@ -280,6 +288,11 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = &node {
         sink.push(crate::network::node_sink(n));
     }
+    let cameras = cal.cameras.iter().map(|c| (c.index, c.name.clone()));
+    let recording = crate::recording::open(&args.mcap, &args.net.table, cameras.collect())?;
+    if let Some(r) = &recording {
+        sink.push(Box::new(r.sink()));
+    }
     let stop = session.stop_flag();
     let sink = ConsoleRows {
         inner: sink,
@@ -300,8 +313,10 @@ pub fn run(args: Args) -> Result<()> {
         Some(n) => crate::network::node_hooks(n, hooks.clone()),
         None => hooks.clone(),
     };
+    let session_hooks = crate::recording::frame_hooks(recording.as_ref(), session_hooks);
     let (report, sink) = session.with_hooks(session_hooks).run(sink)?;
     drop(sink);
+    crate::recording::finish(recording.as_ref())?;
     if let Some(n) = &node {
         crate::network::node_end(n)?;
     }

@@ -54,3 +54,41 @@ pub fn recording(name: &str, sub: &str, scenario: &str, frames: u64) -> Fixture 
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     Fixture { rec, dir, calib }
 }
+
+/// A simulated recording of two cameras (`<tmp>/<name>/rec`) and their calibration
+/// (`<tmp>/<name>/c.toml`); returns the folder and the calibration.
+pub fn two_cameras(name: &str, frames: u64) -> (PathBuf, PathBuf) {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    let rec = dir.join("rec");
+    let ok = |args: &[&str]| {
+        let o = rodtrack(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let r = rec.display().to_string();
+    ok(&[
+        "simulate",
+        "--scenario",
+        "exp3",
+        "--frames",
+        &frames.to_string(),
+        "--out",
+        &r,
+    ]);
+    let calib = dir.join("c.toml");
+    ok(&[
+        "calibrate",
+        "--inputs",
+        &format!("{r}/cam0.json"),
+        "--inputs",
+        &format!("{r}/cam1.json"),
+        "--out",
+        calib.to_str().unwrap(),
+    ]);
+    (dir, calib)
+}

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# The Python subscriber example (python/examples/zenoh_subscriber.py, `eclipse-zenoh` from
+# PyPI in a venv) against real nodes on loopback: a fusion node listening on an explicit
+# tcp/127.0.0.1 endpoint and two camera nodes on real-time sim:// sources connecting to it,
+# multicast scouting off. The subscriber runs for a bounded time; its output must hold every
+# rod, finite positions and increasing frame ids. Uses the release binary built with the
+# feature `zenoh` (RODTRACK_BIN, default target/release/rodtrack); started by .ci/zenoh.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+target="${CARGO_TARGET_DIR:-$PWD/target}"
+bin="${RODTRACK_BIN:-$target/release/rodtrack}"
+venv="$target/ci-zenoh-venv"
+
+if ! "$venv/bin/python" -c "import zenoh" 2>/dev/null; then
+  rm -rf "$venv"
+  python3 -m venv "$venv"
+  "$venv/bin/pip" install -q --disable-pip-version-check "eclipse-zenoh==1.10.2"
+fi
+
+tmp=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+
+"$bin" simulate --scenario exp3 --frames 20 --out "$tmp/rec" >/dev/null 2>"$tmp/sim.err" \
+  || { cat "$tmp/sim.err"; exit 1; }
+"$bin" calibrate --inputs "$tmp/rec/cam0.json" --inputs "$tmp/rec/cam1.json" --out "$tmp/c.toml" >/dev/null
+port=$("$venv/bin/python" -c "import socket; s=socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1])")
+endpoint="tcp/127.0.0.1:$port"
+
+"$bin" fuse --calib "$tmp/c.toml" --subscribe zenoh --publish zenoh \
+    --zenoh-listen "$endpoint" --out "$tmp/fused.csv" 2>"$tmp/fuse.err" &
+pids+=($!)
+# The cameras' shared trigger: frame 0 a few seconds ahead (each node prerenders its frames
+# first); 1200 frames at 200 fps: 6 s of rows.
+t0=$(( $(date +%s%3N) + 4000 ))
+for cam in 0 1; do
+  "$bin" track --calib "$tmp/c.toml" --camera "cam$cam" \
+      --input "sim://exp3?camera=$cam&frames=20&loop=1&prerender=20&realtime=1&trigger_unix_ms=$t0" \
+      --max-frames 1200 --publish zenoh --zenoh-connect "$endpoint" 2>"$tmp/cam$cam.err" &
+  pids+=($!)
+done
+
+logs() { tail -n 5 "$tmp/sub.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
+timeout 30 "$venv/bin/python" python/examples/zenoh_subscriber.py "$endpoint" 8 >"$tmp/sub.txt" \
+  || { echo "the subscriber failed"; logs; exit 1; }
+
+"$venv/bin/python" - "$tmp/sub.txt" <<'PY' || { logs; exit 1; }
+import math, sys
+lines = [l.split() for l in open(sys.argv[1]) if l.startswith("frame ")]
+rows = [dict(zip(l[0::2], l[1::2])) for l in lines]
+assert len(rows) >= 200, f"only {len(rows)} rows received"
+rods = sorted({int(r["rod"]) for r in rows})
+assert rods == list(range(8)), f"rods {rods}"
+assert all(math.isfinite(float(r["position_mm"])) and math.isfinite(float(r["turn_rad"])) for r in rows)
+frames = [int(r["frame"]) for r in rows]
+assert all(b >= a for a, b in zip(frames, frames[1:])), "frame ids must not decrease"
+assert len(set(frames)) >= 50, f"{len(set(frames))} frames"
+print(f"python subscriber: {len(rows)} fused rows of {len(set(frames))} frames, rods {rods[0]}..{rods[-1]}, positions finite, frame ids increasing")
+PY

@@ -1,0 +1,184 @@
+//! Replays an MCAP recording's rows (`track --mcap`, `fuse --mcap`) on the network, in real
+//! time by their log times (the frames' capture timestamps), on the key expressions the
+//! camera nodes and the fusion node use: a camera's rows on `rodtrack/<table>/cam/<camera>/rows`
+//! (kind `rows`), the fused rows on `rodtrack/<table>/fused/rows` (kind `fused`), in the
+//! node's wire format. The keys are the recording's topics without their leading `/`.
+
+use crate::layout::{camera_bit, Kind};
+use crate::net::{NetworkOptions, RowPublisher};
+use crate::ZenohError;
+use rodtrack_core::{CameraId, Measurement};
+use rodtrack_io::mcap::{parse_rows_message, McapFile, ROWS_SCHEMA_NAME};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// How a recording is replayed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplayOptions {
+    /// Playback speed: 1 is real time, 2 twice as fast.
+    pub speed: f64,
+    /// The wait after joining the network and before the first message, so that the
+    /// subscribers' interest has reached this node (zenoh drops what nobody is known to want).
+    pub start_delay: Duration,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions {
+            speed: 1.0,
+            start_delay: Duration::from_secs(1),
+        }
+    }
+}
+
+/// What a replay published.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ReplayReport {
+    /// Messages published.
+    pub messages: u64,
+    /// Rows in them.
+    pub rows: u64,
+    /// Messages of the recording's rows channels that could not be read (skipped).
+    pub skipped: u64,
+    /// From the first message to the last, wall time, s.
+    pub duration_s: f64,
+    /// The recording's span of log times, s.
+    pub recorded_s: f64,
+}
+
+impl std::fmt::Display for ReplayReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "replayed {} messages ({} rows) in {:.3} s (recorded over {:.3} s), {} skipped",
+            self.messages, self.rows, self.duration_s, self.recorded_s, self.skipped
+        )
+    }
+}
+
+/// One rows message to publish.
+struct Planned {
+    log_time_ns: u64,
+    publisher: usize,
+    rows: Vec<Measurement>,
+}
+
+/// Publishes the rows of `file`; see the module documentation. Stops early when `stop` is
+/// set; `warn` gets the messages skipped (the first ten).
+pub fn replay(
+    file: &McapFile,
+    net: &NetworkOptions,
+    options: &ReplayOptions,
+    stop: &AtomicBool,
+    warn: &mut dyn FnMut(&str),
+) -> Result<ReplayReport, ZenohError> {
+    if !(options.speed.is_finite() && options.speed > 0.0) {
+        return Err(ZenohError::Invalid(format!(
+            "speed {}: expected a number above 0",
+            options.speed
+        )));
+    }
+    // The rows channels: id -> (key, kind).
+    let mut channels: BTreeMap<u16, (String, Kind)> = BTreeMap::new();
+    for c in file.channels.values() {
+        let is_rows = file
+            .schemas
+            .get(&c.schema_id)
+            .is_some_and(|s| s.name == ROWS_SCHEMA_NAME);
+        if !is_rows {
+            continue;
+        }
+        let key = c.topic.trim_start_matches('/').to_string();
+        let kind = if key.ends_with("/fused/rows") {
+            Kind::Fused
+        } else {
+            Kind::CameraRows
+        };
+        channels.insert(c.id, (key, kind));
+    }
+    if channels.is_empty() {
+        return Err(ZenohError::Invalid(format!(
+            "the recording has no {ROWS_SCHEMA_NAME} channel: nothing to replay"
+        )));
+    }
+    let mut report = ReplayReport::default();
+    let index: BTreeMap<u16, usize> = channels.keys().enumerate().map(|(i, &c)| (c, i)).collect();
+    let mut plan = Vec::new();
+    let mut cameras = 0u64;
+    for m in &file.messages {
+        let Some(&publisher) = index.get(&m.channel) else {
+            continue;
+        };
+        match parse_rows_message(&m.data) {
+            Ok(msg) => {
+                for r in &msg.rows {
+                    if let CameraId::Camera(k) = r.camera {
+                        cameras |= camera_bit(k);
+                    }
+                }
+                plan.push(Planned {
+                    log_time_ns: m.log_time_ns,
+                    publisher,
+                    rows: msg.rows,
+                });
+            }
+            Err(e) => {
+                report.skipped += 1;
+                if report.skipped <= 10 {
+                    warn(&format!(
+                        "message {} of {}: {e}",
+                        m.sequence, channels[&m.channel].0
+                    ));
+                }
+            }
+        }
+    }
+    let session = net.open()?;
+    let publishers = channels
+        .values()
+        .map(|(key, _)| RowPublisher::declare(&session, key.clone(), net.format))
+        .collect::<Result<Vec<_>, _>>()?;
+    let kinds: Vec<Kind> = channels.values().map(|(_, k)| *k).collect();
+    if !sleep_until(Instant::now() + options.start_delay, stop) {
+        return Ok(report);
+    }
+    let t0 = plan.iter().map(|p| p.log_time_ns).min().unwrap_or(0);
+    let t1 = plan.iter().map(|p| p.log_time_ns).max().unwrap_or(0);
+    report.recorded_s = (t1 - t0) as f64 * 1e-9;
+    let start = Instant::now();
+    for p in &plan {
+        let offset = (p.log_time_ns - t0) as f64 * 1e-9 / options.speed;
+        if !sleep_until(start + Duration::from_secs_f64(offset), stop) {
+            break;
+        }
+        let kind = kinds[p.publisher];
+        let mask = match (kind, p.rows.first().map(|r| r.camera)) {
+            (Kind::Fused, _) => cameras,
+            (_, Some(CameraId::Camera(k))) => camera_bit(k),
+            _ => 0,
+        };
+        publishers[p.publisher].publish_runs(kind, true, mask, &p.rows)?;
+        report.messages += 1;
+        report.rows += p.rows.len() as u64;
+    }
+    report.duration_s = start.elapsed().as_secs_f64();
+    // Undeclared before the session closes.
+    drop(publishers);
+    Ok(report)
+}
+
+/// Sleeps until `t` (at once when past), waking every 100 ms to look at `stop`; false when
+/// stopped.
+fn sleep_until(t: Instant, stop: &AtomicBool) -> bool {
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return false;
+        }
+        let now = Instant::now();
+        if now >= t {
+            return true;
+        }
+        std::thread::sleep((t - now).min(Duration::from_millis(100)));
+    }
+}
