@@ -31,7 +31,7 @@
 //! competes with tracking for the CPU.
 
 use crate::choices::{HandoffArg, WriteArg};
-use crate::track::{install_ctrlc, CliHooks};
+use crate::track::CliHooks;
 use anyhow::{Context, Result};
 use rodtrack_core::calib::CameraCalibration;
 use rodtrack_core::{CameraPipeline, Mode};
@@ -171,7 +171,7 @@ pub fn run(args: Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     drop(sim);
     let stop = Arc::new(AtomicBool::new(false));
-    install_ctrlc(stop.clone());
+    crate::interrupt::install(stop.clone());
     let config = config(&args);
     eprintln!(
         "{} run(s) of {} frames x {ncam} camera(s) of `{}` ({}), Live mode{}, {}, {}, spin {} us, CSV to {}{} ...",

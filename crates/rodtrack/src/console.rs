@@ -167,7 +167,7 @@ fn run_demo(args: &Args) -> Result<()> {
         session.control(),
     )));
     let stop = session.stop_flag();
-    crate::track::install_ctrlc(stop.clone());
+    crate::interrupt::install(stop.clone());
     if let Some(secs) = args.seconds {
         let stop = stop.clone();
         std::thread::Builder::new()

@@ -57,6 +57,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    crate::interrupt::catch_early();
     if args.out.is_none() && args.publish.is_none() && args.mcap.is_none() {
         bail!("give --out FILE for the fused rows, or --mcap FILE, or --publish zenoh");
     }
@@ -117,7 +118,7 @@ fn run_node(args: Args) -> Result<()> {
         publish: args.publish.is_some(),
     };
     let stop = Arc::new(AtomicBool::new(false));
-    crate::track::install_ctrlc(stop.clone());
+    crate::interrupt::install(stop.clone());
     let net = crate::network::network_options(&args.net);
     let table = net.table()?.to_string();
     eprintln!(

@@ -9,6 +9,7 @@ mod console_hooks;
 mod demo;
 mod evaluate;
 mod fuse;
+mod interrupt;
 mod marker;
 mod network;
 mod recording;

@@ -28,6 +28,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    crate::interrupt::catch_early();
     if !(args.start_delay_s.is_finite() && args.start_delay_s >= 0.0) {
         anyhow::bail!(
             "--start-delay-s {}: expected seconds, 0 or more",
@@ -55,7 +56,7 @@ fn run_replay(args: Args) -> Result<()> {
         eprintln!("warning: {}: {cut}", args.file.display());
     }
     let stop = Arc::new(AtomicBool::new(false));
-    crate::track::install_ctrlc(stop.clone());
+    crate::interrupt::install(stop.clone());
     let options = ReplayOptions {
         speed: args.speed,
         start_delay: std::time::Duration::from_secs_f64(args.start_delay_s),

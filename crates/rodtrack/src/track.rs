@@ -184,6 +184,7 @@ fn node_calibration(
 
 /// Runs the command.
 pub fn run(args: Args) -> Result<()> {
+    crate::interrupt::catch_early();
     let out = args.out.clone().unwrap_or_default();
     match (&args.out, args.publish) {
         (Some(out), _) => check_out_is_not_an_input(out, &[&args.calib])?,
@@ -299,7 +300,7 @@ pub fn run(args: Args) -> Result<()> {
         console: console.clone(),
         stop_on_broken_pipe: Some(stop.clone()),
     };
-    install_ctrlc(stop);
+    crate::interrupt::install(stop);
     if let Some(c) = &console {
         c.attach_session(Arc::new(crate::console_hooks::SessionCommands(
             session.control(),
@@ -413,15 +414,6 @@ impl<S: MeasurementSink> MeasurementSink for ConsoleRows<S> {
     fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
         self.inner.flush()
     }
-}
-
-/// Sets `stop` on Ctrl-C; a second Ctrl-C while stopping ends the process the usual way.
-pub fn install_ctrlc(stop: Arc<AtomicBool>) {
-    let _ = ctrlc::set_handler(move || {
-        if stop.swap(true, Ordering::SeqCst) {
-            std::process::exit(130);
-        }
-    });
 }
 
 /// The disagreements, sync warnings and source warnings printed in full; later ones are only
