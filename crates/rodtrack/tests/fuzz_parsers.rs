@@ -9,7 +9,8 @@
 //! Targets: calibration inputs (JSON), calibration file (TOML), OpenCV camera model (YAML and
 //! JSON), `timestamps.csv`, input strings (URIs), image files (PNG, PGM, TIFF headers and
 //! data), the UDP layout (decode, and encode/decode round trip), measurement files (CSV and
-//! JSON Lines).
+//! JSON Lines), MCAP recordings (the reader `rodtrack replay` uses, and the rows' messages in
+//! them), the ball's event lines.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use proptest::prelude::Rng;
@@ -447,5 +448,67 @@ fn fuzz_measurement_files() {
             let _ = rodtrack_io::sink::parse_measurement_json(&t, Path::new("m.jsonl"), 1);
         },
     );
+    assert!(n > 2);
+}
+
+#[test]
+fn fuzz_mcap_recordings() {
+    use rodtrack_io::mcap::{parse_mcap, parse_rows_message, ChunkLimits, McapRecorder};
+    use rodtrack_io::MeasurementSink;
+    // A small real recording (several chunks, rows and joints of two cameras and the
+    // fusion) as the seed: what `rodtrack replay` reads.
+    let dir = std::env::temp_dir().join(format!("rodtrack-fuzz-mcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("seed.mcap");
+    let rec = McapRecorder::create(
+        &path,
+        rodtrack_io::mcap::RecordOptions {
+            table: "t".into(),
+            cameras: vec![(0, "cam0".into()), (1, "cam1".into())],
+            chunk: ChunkLimits {
+                span_ns: 10_000_000,
+                bytes: 1 << 20,
+            },
+            frames_per_s: 0.0,
+        },
+    )
+    .unwrap();
+    let mut sink = rec.sink();
+    for f in 0..6u64 {
+        let rows: Vec<Measurement> = sample_rows()
+            .into_iter()
+            .map(|mut m| {
+                m.frame = f;
+                m.timestamp_ns = rodtrack_core::Timestamp(5_000_000 * f);
+                m
+            })
+            .collect();
+        sink.write(&rows).unwrap();
+    }
+    sink.flush().unwrap();
+    rec.finish().unwrap();
+    let seed = std::fs::read(&path).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(parse_mcap(&seed, Path::new("seed.mcap")).is_ok());
+    let n = fuzz("mcap", &[&seed], |b| {
+        if let Ok(file) = parse_mcap(b, Path::new("f.mcap")) {
+            for m in &file.messages {
+                let _ = parse_rows_message(&m.data);
+            }
+        }
+    });
+    assert!(n > 1);
+}
+
+#[test]
+fn fuzz_event_lines() {
+    let seeds: [&[u8]; 3] = [
+        br#"{"frame":3,"timestamp_s":0.015000,"event":"ball_stopped","x_mm":10.0,"y_mm":-5.0}"#,
+        br#"{"frame":120,"timestamp_s":0.6,"event":"goal","side":"a","score":[1,0]}"#,
+        br#"{"frame":7,"timestamp_s":0.035,"event":"shot","speed_mm_s":4500.0,"rod":2}"#,
+    ];
+    let n = fuzz("event_lines", &seeds, |b| {
+        let _ = rodtrack_io::sink::parse_event_json(&text(b), Path::new("e.jsonl"), 1);
+    });
     assert!(n > 2);
 }
