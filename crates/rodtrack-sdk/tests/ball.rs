@@ -5,34 +5,18 @@
 
 use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::calib::table::calibrate_table;
-use rodtrack_core::calib::{CalibrationFile, CALIBRATION_VERSION};
-use rodtrack_core::{CameraIntrinsics, CameraPipeline, Mode};
+use rodtrack_core::calib::CalibrationFile;
+use rodtrack_core::CameraIntrinsics;
 use rodtrack_io::{BallVecSink, VecSink};
-use rodtrack_sdk::{Session, SessionCamera, SessionOptions};
-use rodtrack_sim::{build_simulation, SimSource, Simulation};
+use rodtrack_sdk::{Session, SessionOptions};
+use rodtrack_sim::{build_simulation, Simulation};
 
-/// Calibrates every camera of `sim` from its simulated clicks, reference frame and ball frame.
-fn calibrate(sim: &mut Simulation, seed: u64) -> CalibrationFile {
-    CalibrationFile {
-        version: CALIBRATION_VERSION,
-        cameras: (0..sim.cameras().len())
-            .map(|cam| sim.calibrated_camera_with_ball(cam, seed).unwrap())
-            .collect(),
-    }
-}
+mod common;
+use common::{calibrate, session_cameras};
 
 /// The ball rows of a session over every frame of `sim`.
 fn track_ball(sim: &Simulation, cal: &CalibrationFile) -> Vec<BallRow> {
-    let sources = SimSource::for_simulation(sim, Default::default()).unwrap();
-    let cameras = sources
-        .into_iter()
-        .zip(&cal.cameras)
-        .map(|(s, c)| SessionCamera {
-            label: format!("camera {}", c.index),
-            source: Box::new(s),
-            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
-        })
-        .collect();
+    let cameras = session_cameras(sim, cal);
     let rows = BallVecSink::default();
     let session = Session::from_cameras(cameras, SessionOptions::default())
         .with_ball(cal, Box::new(rows.clone()))

@@ -6,34 +6,17 @@
 #![allow(clippy::unwrap_used)]
 
 use rodtrack_core::ball::events::{match_events, BallEvent, EventConfig, EventKind, TableGeometry};
-use rodtrack_core::calib::{CalibrationFile, CALIBRATION_VERSION};
-use rodtrack_core::{CameraPipeline, Mode};
+use rodtrack_core::calib::CalibrationFile;
 use rodtrack_io::{BallVecSink, EventVecSink, VecSink};
-use rodtrack_sdk::{EventCounts, Session, SessionCamera, SessionOptions};
-use rodtrack_sim::{build_simulation, SimSource, Simulation};
+use rodtrack_sdk::{EventCounts, Session, SessionOptions};
+use rodtrack_sim::{build_simulation, Simulation};
 
-/// Calibrates every camera of `sim` from its simulated clicks, reference frame and ball frame.
-fn calibrate(sim: &mut Simulation, seed: u64) -> CalibrationFile {
-    CalibrationFile {
-        version: CALIBRATION_VERSION,
-        cameras: (0..sim.cameras().len())
-            .map(|cam| sim.calibrated_camera_with_ball(cam, seed).unwrap())
-            .collect(),
-    }
-}
+mod common;
+use common::{calibrate, session_cameras};
 
 /// The events of a session over every frame of `sim`, and the session's counts.
 fn track_events(sim: &Simulation, cal: &CalibrationFile) -> (Vec<BallEvent>, EventCounts) {
-    let sources = SimSource::for_simulation(sim, Default::default()).unwrap();
-    let cameras = sources
-        .into_iter()
-        .zip(&cal.cameras)
-        .map(|(s, c)| SessionCamera {
-            label: format!("camera {}", c.index),
-            source: Box::new(s),
-            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
-        })
-        .collect();
+    let cameras = session_cameras(sim, cal);
     let events = EventVecSink::default();
     let session = Session::from_cameras(cameras, SessionOptions::default())
         .with_ball(cal, Box::new(BallVecSink::default()))
@@ -186,16 +169,7 @@ fn the_table_s_rods_come_from_the_calibration() {
     };
     let err = TableGeometry::from_calibration(&cal, &small).unwrap_err();
     assert!(err.to_string().contains("field"), "{err}");
-    let sources = SimSource::for_simulation(&sim, Default::default()).unwrap();
-    let cameras = sources
-        .into_iter()
-        .zip(&cal.cameras)
-        .map(|(s, c)| SessionCamera {
-            label: format!("camera {}", c.index),
-            source: Box::new(s),
-            pipe: CameraPipeline::new(c, Mode::Enhanced).unwrap(),
-        })
-        .collect();
+    let cameras = session_cameras(&sim, &cal);
     let err = Session::from_cameras(cameras, SessionOptions::default())
         .with_events(
             &cal,
