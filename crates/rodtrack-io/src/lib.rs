@@ -28,8 +28,9 @@ pub use error::{IoError, SourceError};
 pub use frame::{BufferPool, FrameBuffer, FrameMeta, Timestamp};
 pub use sink::{
     decode_udp_packet, parse_event_json, read_events_jsonl, read_measurements_csv,
-    read_measurements_jsonl, BallCsvSink, BallSink, BallVecSink, CsvSink, EventJsonlSink,
-    EventSink, EventVecSink, JsonlSink, MeasurementSink, MultiSink, UdpSink, VecSink,
+    read_measurements_jsonl, BallCsvSink, BallJsonlSink, BallSink, BallVecSink, CsvSink,
+    EventJsonlSink, EventSink, EventVecSink, JsonlSink, MeasurementSink, MultiSink, UdpSink,
+    VecSink,
 };
 pub use source::{
     FrameSource, ImageSequence, ImageSequenceOptions, InputSpec, OpenOptions, RawOptions,

@@ -57,7 +57,7 @@ pub struct Args {
     pub reanchor: Vec<rodtrack_core::TurnAnchor>,
     /// Track the ball too (cameras whose calibration has `[cameras.ball]`) and write its rows
     /// to this CSV file: `frame,timestamp_s,camera,x_mm,y_mm,vx_mm_s,vy_mm_s,quality,status`
-    /// (table frame, docs/ball.md).
+    /// (table frame, docs/ball.md); JSON Lines with the same fields for `.jsonl` or `.json`.
     #[arg(long)]
     pub ball_out: Option<PathBuf>,
     /// Detect the ball's events (tracking the ball, with or without --ball-out) and write
@@ -254,9 +254,14 @@ pub fn run(args: Args) -> Result<()> {
     };
     let mut session = Session::open(&cal, &args.inputs, options)?;
     if let Some(path) = &args.ball_out {
-        let sink = rodtrack_io::BallCsvSink::create(path)
-            .with_context(|| format!("creating the ball output {}", path.display()))?;
-        session = session.with_ball(&cal, Box::new(sink))?;
+        // CSV, or JSON Lines for `.jsonl` / `.json`, as the rods' rows.
+        let created: Result<Box<dyn rodtrack_io::BallSink>, _> = match RowFormat::from_path(path) {
+            RowFormat::Csv => rodtrack_io::BallCsvSink::create(path).map(|s| Box::new(s) as _),
+            RowFormat::Jsonl => rodtrack_io::BallJsonlSink::create(path).map(|s| Box::new(s) as _),
+        };
+        let sink =
+            created.with_context(|| format!("creating the ball output {}", path.display()))?;
+        session = session.with_ball(&cal, sink)?;
     }
     if let Some(path) = &args.events_out {
         if args.ball_out.is_none() {

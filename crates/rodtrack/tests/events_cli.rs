@@ -40,6 +40,7 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let events = dir.join("events.jsonl");
     let rows = dir.join("rows.csv");
+    let ball = dir.join("ball.jsonl");
     let o = rodtrack(&[
         "track",
         "--calib",
@@ -52,10 +53,42 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         rows.to_str().unwrap(),
         "--events-out",
         events.to_str().unwrap(),
+        "--ball-out",
+        ball.to_str().unwrap(),
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("1 goal(s), score 1:0"), "{stdout}");
+    // The ball's rows as JSON Lines (`.jsonl`): two cameras and the fused row per frame, the
+    // CSV's fields.
+    let text = std::fs::read_to_string(&ball).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3 * 200, "ball rows");
+    let fields = [
+        "frame",
+        "timestamp_s",
+        "camera",
+        "x_mm",
+        "y_mm",
+        "vx_mm_s",
+        "vy_mm_s",
+        "quality",
+        "status",
+    ];
+    for v in &lines {
+        let o = v.as_object().unwrap();
+        assert_eq!(o.len(), fields.len(), "{v}");
+        assert!(fields.iter().all(|f| o.contains_key(*f)), "{v}");
+    }
+    assert!(lines
+        .iter()
+        .any(|v| v["camera"] == "fused" && v["status"] == "ok"));
+    assert!(lines
+        .iter()
+        .any(|v| v["camera"] == 1 && v["status"] == "ok"));
     let truth = rodtrack_io::read_events_jsonl(&rec.join("events_truth.jsonl")).unwrap();
     let found = rodtrack_io::read_events_jsonl(&events).unwrap();
     let early: Vec<_> = truth.iter().filter(|e| e.frame < 200).collect();

@@ -158,6 +158,28 @@ impl BallRow {
         );
     }
 
+    /// Appends the row as one JSON object to `out` (no allocation once `out` has room), the
+    /// CSV's columns and precision: `camera` a number, or the string `"fused"`; `status` a
+    /// string.
+    pub fn push_json(&self, out: &mut String) {
+        use std::fmt::Write;
+        let _ = write!(
+            out,
+            "{{\"frame\":{},\"timestamp_s\":{:.6},",
+            self.frame,
+            self.timestamp_s()
+        );
+        let _ = match self.camera {
+            CameraId::Camera(c) => write!(out, "\"camera\":{c},"),
+            CameraId::Fused => write!(out, "\"camera\":\"fused\","),
+        };
+        let _ = write!(
+            out,
+            "\"x_mm\":{:.3},\"y_mm\":{:.3},\"vx_mm_s\":{:.1},\"vy_mm_s\":{:.1},\"quality\":{:.3},\"status\":\"{}\"}}",
+            self.x_mm, self.y_mm, self.vx_mm_s, self.vy_mm_s, self.quality, self.status
+        );
+    }
+
     /// Non-finite numbers replaced: the row becomes `lost` with zeros.
     pub fn sanitized(mut self) -> BallRow {
         let all = [

@@ -84,6 +84,67 @@ impl<W: Write + Send> BallSink for BallCsvSink<W> {
     }
 }
 
+/// Ball rows as JSON Lines: one [`BallRow::push_json`] object per line, the CSV's columns.
+/// Each `write` is flushed to the writer: a crash loses nothing already written.
+///
+/// ```
+/// use rodtrack_core::ball::{BallRow, BallStatus};
+/// use rodtrack_io::{BallJsonlSink, BallSink};
+/// let mut sink = BallJsonlSink::new(Vec::new(), "ball.jsonl");
+/// let mut row = BallRow::lost(3, rodtrack_core::Timestamp(15_000_000), rodtrack_core::CameraId::Fused);
+/// row.x_mm = 10.0;
+/// row.status = BallStatus::Predicted;
+/// sink.write(&[row])?;
+/// let text = String::from_utf8(sink.into_inner()?).unwrap();
+/// assert_eq!(
+///     text,
+///     "{\"frame\":3,\"timestamp_s\":0.015000,\"camera\":\"fused\",\"x_mm\":10.000,\"y_mm\":0.000,\"vx_mm_s\":0.0,\"vy_mm_s\":0.0,\"quality\":0.000,\"status\":\"predicted\"}\n"
+/// );
+/// # Ok::<(), rodtrack_io::IoError>(())
+/// ```
+pub struct BallJsonlSink<W: Write + Send> {
+    out: TextOut<W>,
+    line: String,
+}
+
+impl BallJsonlSink<File> {
+    /// Creates (truncates) a JSON Lines file.
+    pub fn create(path: &Path) -> Result<Self, IoError> {
+        let f = File::create(path).map_err(|e| IoError::file(path, "cannot create", e))?;
+        Ok(BallJsonlSink::new(f, path))
+    }
+}
+
+impl<W: Write + Send> BallJsonlSink<W> {
+    /// JSON Lines into `writer`; `name` names it in errors.
+    pub fn new(writer: W, name: impl Into<PathBuf>) -> Self {
+        BallJsonlSink {
+            out: TextOut::new(writer, name.into()),
+            line: String::with_capacity(1024),
+        }
+    }
+
+    /// Flushes and returns the writer.
+    pub fn into_inner(self) -> Result<W, IoError> {
+        self.out.into_inner()
+    }
+}
+
+impl<W: Write + Send> BallSink for BallJsonlSink<W> {
+    fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
+        self.line.clear();
+        for r in rows {
+            r.sanitized().push_json(&mut self.line);
+            self.line.push('\n');
+        }
+        self.out.write_all(self.line.as_bytes())?;
+        self.out.flush()
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        self.out.flush()
+    }
+}
+
 /// Ball rows kept in memory, shared with its clones (give one to a session, read the other).
 ///
 /// ```

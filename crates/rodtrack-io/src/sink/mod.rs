@@ -13,7 +13,7 @@ mod jsonl;
 mod udp;
 
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
-pub use ball::{BallCsvSink, BallSink, BallVecSink};
+pub use ball::{BallCsvSink, BallJsonlSink, BallSink, BallVecSink};
 pub use events::{parse_event_json, read_events_jsonl, EventJsonlSink, EventSink, EventVecSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
