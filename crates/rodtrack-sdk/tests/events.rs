@@ -5,7 +5,9 @@
 
 #![allow(clippy::unwrap_used)]
 
-use rodtrack_core::ball::events::{match_events, BallEvent, EventConfig, EventKind, TableGeometry};
+use rodtrack_core::ball::events::{
+    final_score, match_events, shot_agreement, BallEvent, EventConfig, TableGeometry,
+};
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_io::{BallVecSink, EventVecSink, VecSink};
 use rodtrack_sdk::{EventCounts, Session, SessionOptions};
@@ -66,14 +68,7 @@ fn goals_run(seed: u64, setup: &str) {
             eprintln!("found: {}", e.json_line());
         }
     }
-    let truth_score = truth
-        .iter()
-        .filter_map(|e| match e.kind {
-            EventKind::Goal { score, .. } => Some(score),
-            _ => None,
-        })
-        .next_back()
-        .unwrap();
+    let truth_score = final_score(&truth);
     let goals = match_events(&truth, &found, "goal", GOAL_TOLERANCE_FRAMES);
     let shots = match_events(&truth, &found, "shot", SHOT_TOLERANCE_FRAMES);
     let stops = match_events(&truth, &found, "ball_stopped", STOP_TOLERANCE_FRAMES);
@@ -90,26 +85,7 @@ fn goals_run(seed: u64, setup: &str) {
         );
     }
     // The shots' rods and speeds.
-    let (mut rod_right, mut speed_err) = (0, Vec::new());
-    for &(i, j) in &shots.pairs {
-        if let (
-            EventKind::Shot {
-                rod: rt,
-                speed_mm_s: st,
-                ..
-            },
-            EventKind::Shot {
-                rod: rf,
-                speed_mm_s: sf,
-                ..
-            },
-        ) = (truth[i].kind, found[j].kind)
-        {
-            rod_right += usize::from(rt == rf);
-            speed_err.push((sf - st) / st);
-        }
-    }
-    let worst_speed = speed_err.iter().fold(0.0f64, |a, e| a.max(e.abs()));
+    let (rod_right, worst_speed) = shot_agreement(&truth, &found, &shots);
     eprintln!(
         "shots: rod right {rod_right}/{}, speed error worst {:.1} %, score {:?} (truth {:?})",
         shots.pairs.len(),

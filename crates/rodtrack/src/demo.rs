@@ -182,20 +182,10 @@ fn print_events(
     truth: &[rodtrack_core::ball::events::BallEvent],
     found: &[rodtrack_core::ball::events::BallEvent],
 ) {
-    use rodtrack_core::ball::events::{match_events, EventKind};
-    let score = |events: &[rodtrack_core::ball::events::BallEvent]| {
-        events
-            .iter()
-            .filter_map(|e| match e.kind {
-                EventKind::Goal { score, .. } => Some(score),
-                _ => None,
-            })
-            .next_back()
-            .unwrap_or([0, 0])
-    };
+    use rodtrack_core::ball::events::{final_score, match_events};
     let goals = match_events(truth, found, "goal", 20);
     let shots = match_events(truth, found, "shot", 20);
-    let (st, sf) = (score(truth), score(found));
+    let (st, sf) = (final_score(truth), final_score(found));
     println!(
         "\nthe ball's events: goals {} of {} found, {} false; score {}:{} (truth {}:{}); shots {} of {} found, {} false",
         goals.found, goals.truth, goals.false_events, sf[0], sf[1], st[0], st[1],

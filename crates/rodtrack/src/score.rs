@@ -3,7 +3,7 @@
 //! [`rodtrack_core::ball::events::match_events`]).
 
 use anyhow::{bail, Context, Result};
-use rodtrack_core::ball::events::{match_events, BallEvent, EventKind};
+use rodtrack_core::ball::events::{final_score, match_events, shot_agreement, BallEvent};
 use rodtrack_core::CameraId;
 use rodtrack_eval::score::{format_table, read_rows, score};
 use std::path::PathBuf;
@@ -88,27 +88,7 @@ fn events_table(truth: &[BallEvent], found: &[BallEvent], tolerance_frames: u64)
             m.truth, m.found, m.missed, m.false_events
         ));
         if name == "shot" && !m.pairs.is_empty() {
-            let (mut rods, mut worst) = (0usize, 0.0f64);
-            for &(i, j) in &m.pairs {
-                if let (
-                    EventKind::Shot {
-                        rod: rt,
-                        speed_mm_s: st,
-                        ..
-                    },
-                    EventKind::Shot {
-                        rod: rf,
-                        speed_mm_s: sf,
-                        ..
-                    },
-                ) = (truth[i].kind, found[j].kind)
-                {
-                    rods += usize::from(rt == rf);
-                    if st > 0.0 {
-                        worst = worst.max(((sf - st) / st).abs());
-                    }
-                }
-            }
+            let (rods, worst) = shot_agreement(truth, found, &m);
             out.push_str(&format!(
                 "  shots paired: rod right {rods}/{}, speed error at most {:.1} %\n",
                 m.pairs.len(),
@@ -116,17 +96,7 @@ fn events_table(truth: &[BallEvent], found: &[BallEvent], tolerance_frames: u64)
             ));
         }
     }
-    let last_score = |events: &[BallEvent]| {
-        events
-            .iter()
-            .filter_map(|e| match e.kind {
-                EventKind::Goal { score, .. } => Some(score),
-                _ => None,
-            })
-            .next_back()
-            .unwrap_or([0, 0])
-    };
-    let (st, sf) = (last_score(truth), last_score(found));
+    let (st, sf) = (final_score(truth), final_score(found));
     out.push_str(&format!(
         "final score (a:b): {}:{} found, {}:{} truth{}\n",
         sf[0],

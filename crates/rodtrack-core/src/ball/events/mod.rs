@@ -35,7 +35,7 @@ mod tests;
 
 pub use config::EventConfig;
 pub use geometry::TableGeometry;
-pub use score::{match_events, same_kind, EventMatch};
+pub use score::{final_score, match_events, same_kind, shot_agreement, EventMatch};
 
 use super::{BallRow, BallStatus};
 use crate::Timestamp;

@@ -80,3 +80,42 @@ pub fn match_events(
         .count();
     m
 }
+
+/// The score after the last goal of `events` (`[a, b]`; `[0, 0]` without a goal).
+pub fn final_score(events: &[BallEvent]) -> [u32; 2] {
+    events
+        .iter()
+        .filter_map(|e| match e.kind {
+            EventKind::Goal { score, .. } => Some(score),
+            _ => None,
+        })
+        .next_back()
+        .unwrap_or([0, 0])
+}
+
+/// Over the paired shots of `m` (from [`match_events`] with `"shot"`): how many name the
+/// truth's rod, and the worst relative speed error (0 without a pair).
+pub fn shot_agreement(truth: &[BallEvent], found: &[BallEvent], m: &EventMatch) -> (usize, f64) {
+    let (mut rods, mut worst) = (0usize, 0.0f64);
+    for &(i, j) in &m.pairs {
+        if let (
+            EventKind::Shot {
+                rod: rt,
+                speed_mm_s: st,
+                ..
+            },
+            EventKind::Shot {
+                rod: rf,
+                speed_mm_s: sf,
+                ..
+            },
+        ) = (truth[i].kind, found[j].kind)
+        {
+            rods += usize::from(rt == rf);
+            if st > 0.0 {
+                worst = worst.max(((sf - st) / st).abs());
+            }
+        }
+    }
+    (rods, worst)
+}
