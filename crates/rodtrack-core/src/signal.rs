@@ -72,23 +72,51 @@ pub fn ncc_direct(kernel: &[f32], signal: &[f32], out: &mut [f32]) {
         "ncc_direct: signal shorter than kernel"
     );
     assert_eq!(out.len(), signal.len() - n + 1, "ncc_direct: output length");
-    let mk = kernel.iter().sum::<f32>() / n as f32;
-    let sk = kernel
-        .iter()
-        .map(|v| (v - mk) * (v - mk))
-        .sum::<f32>()
-        .sqrt();
+    let stats = KernelStats::of(kernel);
     for (k, o) in out.iter_mut().enumerate() {
-        let w = &signal[k..k + n];
-        let ml = w.iter().sum::<f32>() / n as f32;
-        let mut num = 0.0f32;
-        let mut sl = 0.0f32;
-        for (a, b) in kernel.iter().zip(w) {
-            num += (a - mk) * (b - ml);
-            sl += (b - ml) * (b - ml);
-        }
-        let den = sk * sl.sqrt();
-        *o = if den > 1e-6 { num / den } else { 0.0 };
+        *o = ncc_direct_at(kernel, stats, &signal[k..k + n]);
+    }
+}
+
+/// A kernel's mean and root sum of squared deviations, as [`ncc_direct`] computes them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelStats {
+    mean: f32,
+    root_ss: f32,
+}
+
+impl KernelStats {
+    /// The statistics of `kernel` (not empty).
+    pub fn of(kernel: &[f32]) -> Self {
+        let n = kernel.len();
+        let mean = kernel.iter().sum::<f32>() / n as f32;
+        let root_ss = kernel
+            .iter()
+            .map(|v| (v - mean) * (v - mean))
+            .sum::<f32>()
+            .sqrt();
+        KernelStats { mean, root_ss }
+    }
+}
+
+/// [`ncc_direct`] at one offset: `window` is the signal's `kernel.len()` samples there. The
+/// same arithmetic, so the value is bit for bit the one [`ncc_direct`] writes.
+#[inline]
+pub fn ncc_direct_at(kernel: &[f32], stats: KernelStats, window: &[f32]) -> f32 {
+    let (mk, sk) = (stats.mean, stats.root_ss);
+    let n = kernel.len();
+    let ml = window.iter().sum::<f32>() / n as f32;
+    let mut num = 0.0f32;
+    let mut sl = 0.0f32;
+    for (a, b) in kernel.iter().zip(window) {
+        num += (a - mk) * (b - ml);
+        sl += (b - ml) * (b - ml);
+    }
+    let den = sk * sl.sqrt();
+    if den > 1e-6 {
+        num / den
+    } else {
+        0.0
     }
 }
 
@@ -141,6 +169,79 @@ pub fn ncc_cells_prefix(
         for &c in cells {
             num += (c as f64 - mk) * (prefix[base + cell_len] - prefix[base]);
             base += cell_len;
+        }
+        let den = sk * var.max(0.0).sqrt();
+        *o = if den > 1e-6 { (num / den) as f32 } else { 0.0 };
+    }
+}
+
+/// A kernel as runs of constant value: `bounds[r]..bounds[r + 1]` holds `values[r]`
+/// (`bounds` starts at 0 and ends at the kernel's length). Cleared and refilled, so that a
+/// search over many kernels reuses the buffers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KernelRuns {
+    /// Run boundaries, samples: `values.len() + 1` of them.
+    pub bounds: Vec<usize>,
+    /// Each run's value.
+    pub values: Vec<f32>,
+}
+
+impl KernelRuns {
+    /// The runs of an expanded kernel (adjacent equal samples merged).
+    pub fn fill_from(&mut self, kernel: &[f32]) {
+        self.bounds.clear();
+        self.values.clear();
+        for (i, &v) in kernel.iter().enumerate() {
+            if self.values.last() != Some(&v) {
+                self.bounds.push(i);
+                self.values.push(v);
+            }
+        }
+        self.bounds.push(kernel.len());
+    }
+
+    /// The kernel's length, samples.
+    pub fn len(&self) -> usize {
+        self.bounds.last().copied().unwrap_or(0)
+    }
+
+    /// True for an empty kernel.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// NCC of a kernel given as runs of constant value with `signal`, in O(samples x runs) using
+/// prefix sums: equal to [`ncc_direct`] with the kernel expanded to samples (to rounding; the
+/// sums are f64 here). `prefix`/`prefix2` come from [`prefix_sums`] on the same signal. For
+/// the searches over many kernel scales and long lines, where the direct form costs
+/// O(samples x kernel samples) per scale.
+pub fn ncc_runs_prefix(runs: &KernelRuns, prefix: &[f64], prefix2: &[f64], out: &mut [f32]) {
+    let n = runs.len();
+    let len = prefix.len() - 1;
+    assert!(
+        n > 0 && len >= n,
+        "ncc_runs_prefix: signal shorter than kernel"
+    );
+    assert_eq!(out.len(), len - n + 1, "ncc_runs_prefix: output length");
+    let run_len = |r: usize| (runs.bounds[r + 1] - runs.bounds[r]) as f64;
+    let mk = (0..runs.values.len())
+        .map(|r| runs.values[r] as f64 * run_len(r))
+        .sum::<f64>()
+        / n as f64;
+    let sk = (0..runs.values.len())
+        .map(|r| (runs.values[r] as f64 - mk).powi(2) * run_len(r))
+        .sum::<f64>()
+        .sqrt();
+    for (k, o) in out.iter_mut().enumerate() {
+        let sum = prefix[k + n] - prefix[k];
+        let sum2 = prefix2[k + n] - prefix2[k];
+        let var = sum2 - sum * sum / n as f64;
+        // sum_i (K_i - mk)(x_i - ml) = sum_r (v_r - mk) * runsum_r (the ml term vanishes).
+        let mut num = 0.0f64;
+        for (r, &v) in runs.values.iter().enumerate() {
+            let (a, b) = (runs.bounds[r], runs.bounds[r + 1]);
+            num += (v as f64 - mk) * (prefix[k + b] - prefix[k + a]);
         }
         let den = sk * var.max(0.0).sqrt();
         *o = if den > 1e-6 { (num / den) as f32 } else { 0.0 };
@@ -273,6 +374,35 @@ mod tests {
             prefix_sums(&sig, &mut p, &mut p2);
             let mut f = vec![0.0; d.len()];
             ncc_cells_prefix(&cells, cell_len, &p, &p2, &mut f);
+            for (a, b) in d.iter().zip(&f) {
+                prop_assert!((a - b).abs() < 2e-3, "{} vs {}", a, b);
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn runs_ncc_equals_direct(
+            cells in proptest::collection::vec(prop_oneof![Just(0.0f32), Just(1.0f32), 0.0f32..1.0], 3..17),
+            cell in 1.0f64..7.0,
+            sig in proptest::collection::vec(0.0f32..255.0, 130..220),
+        ) {
+            // Cells of a fractional length, rounded to samples as the calibration's searches do.
+            let len = (cells.len() as f64 * cell).round() as usize;
+            let kernel: Vec<f32> = (0..len)
+                .map(|i| cells[(((i as f64 + 0.5) / cell) as usize).min(cells.len() - 1)])
+                .collect();
+            prop_assume!(kernel.len() < sig.len());
+            let mut d = vec![0.0; sig.len() - kernel.len() + 1];
+            ncc_direct(&kernel, &sig, &mut d);
+            let mut p = vec![0.0; sig.len() + 1];
+            let mut p2 = vec![0.0; sig.len() + 1];
+            prefix_sums(&sig, &mut p, &mut p2);
+            let mut runs = KernelRuns::default();
+            runs.fill_from(&kernel);
+            prop_assert_eq!(runs.len(), kernel.len());
+            let mut f = vec![0.0; d.len()];
+            ncc_runs_prefix(&runs, &p, &p2, &mut f);
             for (a, b) in d.iter().zip(&f) {
                 prop_assert!((a - b).abs() < 2e-3, "{} vs {}", a, b);
             }

@@ -6,6 +6,7 @@
 
 use super::file::{EnhancedParams, PaperParams, Residuals, RodCalibration};
 use super::inputs::{KnownPose, RodInputs};
+use super::kernel_search::paper_kernel_search;
 use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
@@ -15,7 +16,10 @@ use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
 use crate::marker::{gray_decode, Marker};
-use crate::signal::{hysteresis, ncc_direct, paper_bandpass, PAPER_HYSTERESIS};
+use crate::signal::{
+    hysteresis, ncc_direct, ncc_runs_prefix, paper_bandpass, prefix_sums, KernelRuns,
+    PAPER_HYSTERESIS,
+};
 use crate::track::{Mode, RodTracker};
 use crate::CoreError;
 use std::f64::consts::TAU;
@@ -170,6 +174,10 @@ pub fn calibrate_rod_with(
     let mut best: Option<(f32, f64, i32, usize)> = None; // (ncc, cell samples, dir, index)
     let mut cell = 2.0 * 2.0; // 2 px cells at 0.5 px per sample
     let mut corr = Vec::new();
+    // The kernel is made of runs: prefix sums make each scale O(samples x runs).
+    let (mut prefix, mut prefix2) = (vec![0.0; n + 1], vec![0.0; n + 1]);
+    prefix_sums(&profile, &mut prefix, &mut prefix2);
+    let mut runs = KernelRuns::default();
     while cell <= 2.0 * 25.0 {
         let len = (kernel.len() as f64 * cell).round() as usize;
         if len + 2 >= n {
@@ -188,7 +196,8 @@ pub fn calibrate_rod_with(
                 })
                 .collect();
             corr.resize(n - len + 1, 0.0);
-            ncc_direct(&kpx, &profile, &mut corr);
+            runs.fill_from(&kpx);
+            ncc_runs_prefix(&runs, &prefix, &prefix2, &mut corr);
             for (i, &c) in corr.iter().enumerate() {
                 if best.is_none_or(|b| c > b.0) {
                     best = Some((c, cell, dir, i));
@@ -623,9 +632,6 @@ fn paper_params(
     hysteresis(&filt, -PAPER_HYSTERESIS, PAPER_HYSTERESIS, &mut bin);
     // Kernel scale and direction that best match, on the paper's own binary line.
     let kernel = marker.kernel();
-    let mut best: Option<(f32, f64, i32, usize)> = None;
-    let mut cell = 2.0f64;
-    let mut corr = Vec::new();
     let expand = |cell: f64, dir: i32, black: f32| -> Vec<f32> {
         let len = (kernel.len() as f64 * cell).round() as usize;
         (0..len)
@@ -640,22 +646,7 @@ fn paper_params(
             })
             .collect()
     };
-    while cell < 25.0 {
-        for dir in [1, -1] {
-            let k = expand(cell, dir, 1.0);
-            if k.len() + 1 >= bin.len() {
-                continue;
-            }
-            corr.resize(bin.len() - k.len() + 1, 0.0);
-            ncc_direct(&k, &bin, &mut corr);
-            for (i, &cv) in corr.iter().enumerate() {
-                if best.is_none_or(|b| cv * cv > b.0) {
-                    best = Some((cv * cv, cell, dir, i));
-                }
-            }
-        }
-        cell *= 1.01;
-    }
+    let best = paper_kernel_search(&bin, |cell, dir| expand(cell, dir, 1.0));
     let (c2, cell_px, direction, p_ref) =
         best.ok_or_else(|| fail("paper line too short".into()))?;
     if c2 < 0.25 {
@@ -666,7 +657,7 @@ fn paper_params(
     // The IIR filters delay the binary line; measure that delay against the raw line so the
     // Gray-code samples land where the paper intends.
     let kraw = expand(cell_px, direction, 0.0);
-    corr.resize(raw.len() - kraw.len() + 1, 0.0);
+    let mut corr = vec![0.0; raw.len() - kraw.len() + 1];
     ncc_direct(&kraw, &raw, &mut corr);
     let lo = p_ref.saturating_sub(6);
     let hi = (p_ref + 6).min(corr.len() - 1);

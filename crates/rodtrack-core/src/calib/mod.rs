@@ -8,6 +8,7 @@ pub mod file;
 pub mod find;
 mod image_size;
 pub mod inputs;
+mod kernel_search;
 pub mod opencv;
 pub mod rods;
 mod silhouette;

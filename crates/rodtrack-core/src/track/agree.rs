@@ -207,6 +207,33 @@ pub fn min_wrong_share(bits: u32, angles_rad: &[f64], edge_steps: f64) -> f64 {
     least
 }
 
+/// [`min_wrong_share`] remembered per code layout (bits, sample angles, edge margin): it
+/// depends on nothing else, and calibration and every new tracker ask for the same few
+/// layouts again and again (a few ms each).
+pub(super) fn min_wrong_share_cached(bits: u32, angles_rad: &[f64], edge_steps: f64) -> f64 {
+    type Key = (u32, Vec<u64>, u64);
+    static CACHE: std::sync::Mutex<Vec<(Key, f64)>> = std::sync::Mutex::new(Vec::new());
+    let key: Key = (
+        bits,
+        angles_rad.iter().map(|a| a.to_bits()).collect(),
+        edge_steps.to_bits(),
+    );
+    if let Ok(cache) = CACHE.lock() {
+        if let Some((_, v)) = cache.iter().find(|(k, _)| *k == key) {
+            return *v;
+        }
+    }
+    let v = min_wrong_share(bits, angles_rad, edge_steps);
+    if let Ok(mut cache) = CACHE.lock() {
+        // A handful of layouts in practice; bounded all the same.
+        if cache.len() >= 64 {
+            cache.remove(0);
+        }
+        cache.push((key, v));
+    }
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,6 +241,22 @@ mod tests {
     /// Marker v1 seen over +/-67.5 degrees with 24 samples: a reading a group or more off
     /// disagrees with the print over a large share of some bit space even under glare, far
     /// above what noise makes of a true one.
+    #[test]
+    fn the_cached_share_is_the_computed_one() {
+        for n in [16usize, 24] {
+            let angles: Vec<f64> = (0..n)
+                .map(|j| (-60.0 + 120.0 * (j as f64 + 0.5) / n as f64).to_radians())
+                .collect();
+            let direct = min_wrong_share(5, &angles, 0.5);
+            assert_eq!(min_wrong_share_cached(5, &angles, 0.5), direct);
+            assert_eq!(min_wrong_share_cached(5, &angles, 0.5), direct);
+            assert_eq!(
+                min_wrong_share_cached(4, &angles, 0.5),
+                min_wrong_share(4, &angles, 0.5)
+            );
+        }
+    }
+
     #[test]
     fn a_wrong_group_disagrees_with_much_of_some_bit_space() {
         let angles: Vec<f64> = (0..24)

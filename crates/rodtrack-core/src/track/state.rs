@@ -1,7 +1,7 @@
 //! The enhanced mode's per-rod state: the precomputed tables, the scratch buffers, what the
 //! learners hold, and the records one frame's stages hand on to the next.
 
-use super::agree::min_wrong_share;
+use super::agree::min_wrong_share_cached;
 use super::fresh::Learnt;
 use super::learners::{CentreFit, ScaleFit};
 use super::linalg::normal_inverse;
@@ -58,7 +58,7 @@ pub(super) struct EnhancedState {
     /// Per `eps`: the surface angle each phase sample sees, `asin(sin(delta) / (1 + eps))`.
     pub(super) eps_angles: Vec<Vec<f64>>,
     /// The least share of a bit space's checked samples that a reading fooled by a group or
-    /// more disagrees with (see [`super::min_wrong_share`]).
+    /// more disagrees with (see [`super::min_wrong_share`], computed once per layout).
     pub(super) code_wrong_share: f64,
     /// Matched-filter energy per `eps`, accumulated over frames.
     pub(super) eps_acc: Vec<f64>,
@@ -297,7 +297,8 @@ impl EnhancedState {
             .step_by(CODE_CHECK_EVERY)
             .map(|p| p.0)
             .collect();
-        let code_wrong_share = min_wrong_share(marker.bits(), &checked, CODE_CHECK_EDGE_STEPS);
+        let code_wrong_share =
+            min_wrong_share_cached(marker.bits(), &checked, CODE_CHECK_EDGE_STEPS);
         let ring_u = silhouette_rings(marker);
         EnhancedState {
             last_k: None,
