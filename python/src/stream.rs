@@ -97,6 +97,8 @@ impl Stream {
         let mut config = options.config.unwrap_or_else(|| pipeline_config(live));
         config.write = WriteMode::Set;
         options.config = Some(config);
+        // The options' own choice would override the settings': whole sets here too.
+        options.write = Some(WriteMode::Set);
         let stop = session.stop_flag();
         let dropped = Arc::new(AtomicU64::new(0));
         let (tx, rx) = std::sync::mpsc::sync_channel(capacity.max(1));

@@ -84,9 +84,10 @@ pub struct Args {
     /// live sources) or `queue` (a processing thread fed by a capture queue).
     #[arg(long, value_enum, default_value_t = HandoffArg::Inline)]
     pub handoff: HandoffArg,
-    /// When rows are written: `camera` (each camera's rows as soon as measured, as `track`
-    /// runs live sources) or `set` (one write per frame set, after the fusion).
-    #[arg(long, value_enum, default_value_t = WriteArg::Camera)]
+    /// When rows are written: `set` (one write per frame set, after the fusion, as `track`
+    /// runs by default) or `camera` (each camera's rows as soon as measured, `track --write
+    /// camera`: camera rows not flagged `conflict`).
+    #[arg(long, value_enum, default_value_t = WriteArg::Set)]
     pub write: WriteArg,
     /// Poll a queue or the output lock this long before blocking on it (us; 0: block at once;
     /// default: `track`'s for live sources, see `PipelineConfig::spin`).

@@ -60,9 +60,11 @@ impl From<HandoffArg> for rodtrack_io::runtime::Handoff {
 /// `--write`: when rows are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum WriteArg {
-    /// Each camera's rows as soon as they are measured.
+    /// Each camera's rows as soon as they are measured (the lowest latency; camera rows not
+    /// flagged `conflict`).
     Camera,
-    /// One write per frame set, after the fusion.
+    /// One write per frame set, after the fusion (camera rows the fusion overruled flagged
+    /// `conflict`).
     Set,
 }
 

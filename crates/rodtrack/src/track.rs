@@ -2,7 +2,7 @@
 //! progress bar (recordings) or live statistics (live sources) on stderr, and optionally the
 //! web console.
 
-use crate::choices::{FormatArg, ModeArg};
+use crate::choices::{FormatArg, ModeArg, WriteArg};
 use crate::console_hooks::ConsoleHooks;
 use anyhow::{bail, Context, Result};
 use rodtrack_console::{Console, ConsoleHandle};
@@ -49,6 +49,12 @@ pub struct Args {
     /// Stop after this many frames per camera.
     #[arg(long)]
     pub max_frames: Option<u64>,
+    /// When rows are written: `set` (default) one write per frame set after the fusion, the
+    /// camera rows the fusion overruled marked `conflict`; `camera` each camera's rows as soon
+    /// as they are measured, the lowest latency for live sources of several cameras (camera
+    /// rows not flagged `conflict`: only the fused row shows it).
+    #[arg(long, value_enum, default_value_t = WriteArg::Set)]
+    pub write: WriteArg,
     /// Re-anchor a rod's turn count by hand: `FRAME:ROD:TURNS` says that at frame FRAME rod
     /// ROD is at whole turn TURNS (`angle_unwrapped_rad = 2 pi TURNS + angle_rad`), and its
     /// count is known from there (repeat for several). For a count that became unknown
@@ -248,6 +254,7 @@ pub fn run(args: Args) -> Result<()> {
         filter: !args.raw,
         max_frames: args.max_frames,
         turn_anchors: args.reanchor.clone(),
+        write: Some(args.write.into()),
         // A camera node's status goes out once a second.
         progress_period: node.is_some().then_some(std::time::Duration::from_secs(1)),
         ..SessionOptions::default()
@@ -537,11 +544,11 @@ mod tests {
     use rodtrack_sdk::pipeline_config;
 
     #[test]
-    fn live_sources_run_inline_with_per_camera_writes_recordings_per_set() {
+    fn live_sources_run_inline_recordings_queued_both_write_per_set() {
         let live = pipeline_config(true);
         assert_eq!(
             (live.mode, live.handoff, live.write),
-            (RunMode::Live, Handoff::Inline, WriteMode::PerCamera)
+            (RunMode::Live, Handoff::Inline, WriteMode::Set)
         );
         let files = pipeline_config(false);
         assert_eq!(

@@ -1,8 +1,9 @@
 //! Low-latency UDP stream for a control program: one datagram per `write` call and frame id,
 //! sent (`send_to` returned) before `write` returns. The runtime writes one frame set per call
-//! ([`crate::runtime::WriteMode::Set`]), or each camera's rows of a frame as soon as they are
-//! measured and then the set's fused rows ([`crate::runtime::WriteMode::PerCamera`], `rodtrack
-//! track` on live sources): rows carry their camera, so a receiver can take either.
+//! ([`crate::runtime::WriteMode::Set`], `rodtrack track` by default, live or not), or each
+//! camera's rows of a frame as soon as they are measured and then the set's fused rows
+//! ([`crate::runtime::WriteMode::PerCamera`], `rodtrack track --write camera`): rows carry
+//! their camera, so a receiver can take either.
 //!
 //! Layout (version 2), all little endian:
 //!

@@ -7,8 +7,9 @@
 //!                                                                 >-> [group by frame id, fusion] -> sink
 //!  source 1 -> [capture 1] -> queue -> [tracker 1 + filter 1] --/
 //!
-//!  live sources: one thread per camera reads, tracks, filters and writes its rows; the thread
-//!  that completes a frame set fuses it and writes the fused rows.
+//!  live sources: one thread per camera reads, tracks and filters its frame; the thread that
+//!  completes a frame set fuses it and writes the whole set (every camera's rows, then the
+//!  fused ones).
 //! ```
 //!
 //! - One processing stage per camera: its [`CameraPipeline::process`]; a frame that the source
@@ -18,11 +19,16 @@
 //!   [`rodtrack_core::CameraFilter`] in its own thread, and the fusion of the measured rows
 //!   ([`rodtrack_core::SetFusion`]) is the pipeline's fusion stage. The rows are those of
 //!   [`rodtrack_core::FrameSetFilter`] over each set.
-//! - Recordings run in [`RunMode::Batch`] (never drop, as fast as possible) with one write per
-//!   frame set, so that files are identical whatever the timing. Live sources run in
-//!   [`RunMode::Live`], each camera's thread processing the frame it read (no hand-off) and
-//!   writing its rows at once, the fused rows when the set is complete: the lowest latency
-//!   ([`pipeline_config`]).
+//! - Recordings run in [`RunMode::Batch`] (never drop, as fast as possible), live sources in
+//!   [`RunMode::Live`], each camera's thread processing the frame it read (no hand-off)
+//!   ([`pipeline_config`]). Both write one frame set at a time, after the fusion, so that a
+//!   camera row the fusion overruled is marked `conflict` and files of recordings are identical
+//!   whatever the timing; a set of one camera is complete, and written, as soon as its frame is
+//!   measured. [`SessionOptions::write`] = [`WriteMode::PerCamera`] writes each camera's rows
+//!   as soon as they are measured instead, the fused rows when the set is complete: a camera's
+//!   rows then do not wait for the other cameras' frames of the set (with 2 cameras about
+//!   40 us less at p50, see `rodtrack bench-latency --write camera` and docs/performance.md),
+//!   but camera rows are not flagged `conflict` (only the fused row shows it).
 //! - On the end of the inputs, an error or [`Session::stop_flag`]: every pending set is
 //!   written and the sink flushed.
 //!
@@ -97,6 +103,21 @@ pub struct SessionOptions {
     pub max_frames: Option<u64>,
     /// Pipeline settings instead of [`pipeline_config`]'s.
     pub config: Option<PipelineConfig>,
+    /// When rows reach the sink, over the pipeline settings' choice (`None`: keep it,
+    /// [`WriteMode::Set`] by default, live or not). [`WriteMode::Set`]: whole frame sets
+    /// after the fusion, camera rows the fusion overruled marked `conflict`.
+    /// [`WriteMode::PerCamera`]: each camera's rows as soon as they are measured, the lowest
+    /// latency for live runs of several cameras; camera rows not flagged `conflict` (only the
+    /// fused row shows a conflict).
+    ///
+    /// ```
+    /// use rodtrack_io::runtime::WriteMode;
+    /// use rodtrack_sdk::SessionOptions;
+    /// // Lowest latency: each camera's rows at once, camera rows not flagged.
+    /// let fast = SessionOptions { write: Some(WriteMode::PerCamera), ..SessionOptions::default() };
+    /// # let _ = fast;
+    /// ```
+    pub write: Option<WriteMode>,
     /// How often [`Hooks::progress`] is called (default: 250 ms for recordings, 1 s live).
     pub progress_period: Option<Duration>,
     /// Turn counts set by hand at given frames (re-anchoring a count that became unknown, see
@@ -112,6 +133,7 @@ impl Default for SessionOptions {
             filter: true,
             max_frames: None,
             config: None,
+            write: None,
             progress_period: None,
             turn_anchors: Vec::new(),
         }
@@ -565,15 +587,25 @@ impl RunReport {
 /// ```
 pub const LIVE_SPIN: Duration = Duration::from_micros(30);
 
-/// Pipeline settings for recordings (`live` false) or live sources: for live sources the
-/// lowest latency (no hand-off between threads, each camera's rows written as soon as they are
-/// measured, [`LIVE_SPIN`] on the output lock); for recordings one write per frame set (files
-/// identical whatever the timing).
+/// Pipeline settings for recordings (`live` false) or live sources. Both write one frame set
+/// at a time, after the fusion ([`WriteMode::Set`]): camera rows the fusion overruled are
+/// marked `conflict`, and files of recordings are identical whatever the timing. For live
+/// sources: no hand-off between threads (each camera's thread tracks the frame it read, the
+/// thread that completes a set writes it; a single camera's set is complete, and written, at
+/// once) and [`LIVE_SPIN`] on the output lock. Set `write` to [`WriteMode::PerCamera`] (or
+/// [`SessionOptions::write`]) for each camera's rows as soon as they are measured: the lowest
+/// latency with several cameras, camera rows not flagged.
 ///
 /// ```
-/// use rodtrack_io::runtime::RunMode;
+/// use rodtrack_io::runtime::{Handoff, RunMode, WriteMode};
 /// // Recordings: one write per frame set, as fast as the tracker goes.
 /// assert_eq!(rodtrack_sdk::pipeline_config(false).mode, RunMode::Batch);
+/// // Live sources: inline tracking, whole frame sets too (camera rows flagged `conflict`).
+/// let live = rodtrack_sdk::pipeline_config(true);
+/// assert_eq!((live.mode, live.handoff, live.write), (RunMode::Live, Handoff::Inline, WriteMode::Set));
+/// // The lowest latency, camera rows not flagged:
+/// let fast = rodtrack_io::runtime::PipelineConfig { write: WriteMode::PerCamera, ..live };
+/// # let _ = fast;
 /// ```
 pub fn pipeline_config(live: bool) -> PipelineConfig {
     if live {
@@ -581,7 +613,7 @@ pub fn pipeline_config(live: bool) -> PipelineConfig {
         PipelineConfig {
             mode: RunMode::Live,
             handoff: Handoff::Inline,
-            write: WriteMode::PerCamera,
+            write: WriteMode::Set,
             spin: if cores >= 2 {
                 LIVE_SPIN
             } else {

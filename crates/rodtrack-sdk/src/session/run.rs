@@ -60,7 +60,10 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
         mut ball,
     } = session;
     let live = cameras.iter().any(|c| c.source.info().live);
-    let config = options.config.unwrap_or_else(|| pipeline_config(live));
+    let mut config = options.config.unwrap_or_else(|| pipeline_config(live));
+    if let Some(write) = options.write {
+        config.write = write;
+    }
     let ncam = cameras.len();
     let max_frames = options.max_frames;
     let total = if live {
