@@ -17,7 +17,8 @@ step "venv with maturin, pytest, numpy"
 venv="$target/ci-python-venv"
 rm -rf "$venv"
 python3 -m venv "$venv"
-"$venv/bin/pip" install -q --disable-pip-version-check maturin pytest numpy
+# rosbags: an independent reader of ROS 2 bags (the ROS 2 bag check below).
+"$venv/bin/pip" install -q --disable-pip-version-check maturin pytest numpy rosbags
 # PyO3 builds for the venv's interpreter; maturin and pip are the venv's.
 export PATH="$venv/bin:$PATH"
 export PYO3_PYTHON="$venv/bin/python"
@@ -40,6 +41,20 @@ pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 
 step "pytest python/tests (the rodtrack binary of target/release for the CSV comparisons)"
 RODTRACK_BIN="$target/release/rodtrack" python -m pytest -q -rs python/tests
+
+step "ROS 2 bags of track --mcap-ros2 (plain and lz4 chunks) read by rosbags, checked against the CSV"
+bag="$target/ci-ros2-bag"
+rm -rf "$bag"
+cli="$target/release/rodtrack"
+"$cli" simulate --scenario exp3 --frames 40 --out "$bag/rec" >/dev/null
+"$cli" calibrate --inputs "$bag/rec/cam0.json" --inputs "$bag/rec/cam1.json" \
+  --out "$bag/calib.toml" >/dev/null
+for c in none lz4; do
+  "$cli" track --calib "$bag/calib.toml" --input "$bag/rec/cam0" --input "$bag/rec/cam1" \
+    --table t1 --out "$bag/rows-$c.csv" --mcap "$bag/joints-$c.mcap" --mcap-ros2 \
+    --mcap-compression "$c" >/dev/null
+  python .ci/ros2_bag.py "$bag/joints-$c.mcap" "$bag/rows-$c.csv"
+done
 
 step "examples"
 python python/examples/control_loop.py 1 | tail -3

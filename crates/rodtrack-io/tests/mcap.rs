@@ -5,8 +5,8 @@
 
 use rodtrack_core::{CameraId, Measurement, Status, Timestamp};
 use rodtrack_io::mcap::{
-    parse_mcap, parse_rows_message, read_mcap, ChunkLimits, McapRecorder, RecordOptions,
-    ROWS_SCHEMA_NAME,
+    parse_mcap, parse_rows_message, read_mcap, ChunkLimits, Compression, JointState, McapRecorder,
+    Profile, RecordOptions, JOINT_STATE_MSGDEF, MAX_CHUNK_BYTES, ROWS_SCHEMA_NAME,
 };
 use rodtrack_io::{IoError, MeasurementSink};
 use std::path::PathBuf;
@@ -54,6 +54,7 @@ fn options(span_ns: u64) -> RecordOptions {
             bytes: 1 << 20,
         },
         frames_per_s: 0.0,
+        ..RecordOptions::default()
     }
 }
 
@@ -232,4 +233,121 @@ fn frames_are_recorded_at_the_rate_asked() {
         (Some(4), Some("mono8"))
     );
     assert_eq!(v["data"], "AAECA/r7/P0=");
+}
+
+/// Records frames 0..`frames` of [`set`] with `o`; the file's bytes.
+fn record(name: &str, o: RecordOptions, frames: u64) -> Vec<u8> {
+    let path = tmp(name);
+    let rec = McapRecorder::create(&path, o).unwrap();
+    let mut sink = rec.sink();
+    for f in 0..frames {
+        sink.write(&set(f)).unwrap();
+    }
+    rec.finish().unwrap();
+    std::fs::read(&path).unwrap()
+}
+
+#[test]
+fn lz4_chunks_hold_the_same_messages_in_fewer_bytes() {
+    let plain = record("plain.mcap", options(20_000_000), 40);
+    let mut o = options(20_000_000);
+    o.compression = Compression::Lz4;
+    let packed = record("lz4.mcap", o, 40);
+    let (a, b) = (
+        parse_mcap(&plain, "a.mcap".as_ref()).unwrap(),
+        parse_mcap(&packed, "b.mcap".as_ref()).unwrap(),
+    );
+    assert!(b.complete);
+    assert_eq!(a.messages, b.messages);
+    assert_eq!(a.messages.len(), 6 * 40);
+    assert!(
+        packed.len() * 2 < plain.len(),
+        "{} bytes in lz4 chunks, {} plain",
+        packed.len(),
+        plain.len()
+    );
+    // Every chunk record says lz4 (the compression string follows 28 bytes of fields).
+    let offsets = chunk_offsets(&packed);
+    assert!(offsets.len() >= 5);
+    for at in offsets {
+        assert_eq!(&packed[at + 9 + 28..at + 9 + 35], b"\x03\0\0\0lz4");
+    }
+}
+
+#[test]
+fn compressed_chunks_that_lie_are_refused() {
+    let mut o = options(u64::MAX);
+    o.compression = Compression::Lz4;
+    let good = record("lie.mcap", o, 3);
+    let at = chunk_offsets(&good)[0] + 9;
+    // The uncompressed size: past the cap, then one byte more than the frame holds.
+    for (size, want) in [(MAX_CHUNK_BYTES + 1, "claims"), (1, "damaged")] {
+        let mut b = good.clone();
+        b[at + 16..at + 24].copy_from_slice(&size.to_le_bytes());
+        let e = parse_mcap(&b, "l.mcap".as_ref()).unwrap_err();
+        assert!(e.to_string().contains(want), "{e}");
+    }
+    // zstd is named, not misread.
+    let mut b = good.clone();
+    b[at + 32..at + 35].copy_from_slice(b"zst");
+    let e = parse_mcap(&b, "z.mcap".as_ref()).unwrap_err();
+    assert!(e.to_string().contains("\"zst\""), "{e}");
+    // A damaged frame is an error.
+    let mut b = good;
+    let n = b.len();
+    b[at + 60..n - 200].iter_mut().for_each(|x| *x ^= 0x5A);
+    assert!(parse_mcap(&b, "d.mcap".as_ref()).is_err());
+}
+
+#[test]
+fn a_ros2_bag_holds_joint_states_in_cdr_with_their_schema_and_qos() {
+    let mut o = options(20_000_000);
+    o.profile = Profile::Ros2;
+    o.compression = Compression::Lz4;
+    o.cameras[1].1 = "2nd cam".into();
+    let bytes = record("ros2.mcap", o, 10);
+    let file = parse_mcap(&bytes, "r.mcap".as_ref()).unwrap();
+    assert_eq!(file.profile, "ros2");
+    let topics: Vec<&str> = file.channels.values().map(|c| c.topic.as_str()).collect();
+    assert_eq!(
+        topics,
+        [
+            "/rodtrack/t1/cam/left/joint_states",
+            "/rodtrack/t1/cam/_2nd_cam/joint_states",
+            "/rodtrack/t1/fused/joint_states",
+        ]
+    );
+    assert_eq!(file.schemas.len(), 1);
+    let schema = &file.schemas[&1];
+    assert_eq!(
+        (schema.name.as_str(), schema.encoding.as_str()),
+        ("sensor_msgs/msg/JointState", "ros2msg")
+    );
+    assert_eq!(schema.data, JOINT_STATE_MSGDEF.as_bytes());
+    for c in file.channels.values() {
+        assert_eq!(c.message_encoding, "cdr");
+        assert!(c.metadata["offered_qos_profiles"].contains("reliability: 1"));
+    }
+    assert_eq!(file.messages.len(), 3 * 10);
+    let fused = file.channel("/rodtrack/t1/fused/joint_states").unwrap().id;
+    let m = file
+        .messages
+        .iter()
+        .filter(|m| m.channel == fused)
+        .nth(3)
+        .unwrap();
+    assert_eq!(&m.data[..4], &[0, 1, 0, 0]);
+    let js = JointState::from_cdr(&m.data).unwrap();
+    assert_eq!(js.stamp_ns(), 15_000_017);
+    assert_eq!(m.log_time_ns, 15_000_017);
+    assert_eq!(js.frame_id, "rodtrack/t1/fused");
+    assert_eq!(
+        js.name,
+        ["rod0_slide", "rod0_turn", "rod1_slide", "rod1_turn"]
+    );
+    // Rod 1: (1/3 + 1) mm, -7.5 + 3 rad; 12.5 mm/s, -3 rad/s; rod 2 (lost) left out.
+    assert_eq!(js.position[2], (1.0 / 3.0 + 1.0) * 1e-3);
+    assert_eq!(js.position[3], -4.5);
+    assert_eq!(js.velocity, [0.0125, -3.0, 0.0125, -3.0]);
+    assert!(js.effort.is_empty());
 }

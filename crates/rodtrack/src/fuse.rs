@@ -50,6 +50,13 @@ pub struct Args {
     /// file, for Foxglove or Rerun (docs/network.md).
     #[arg(long)]
     pub mcap: Option<PathBuf>,
+    /// With --mcap: write a ROS 2 bag instead (MCAP profile ros2): the rods as
+    /// sensor_msgs/msg/JointState in CDR, per camera and fused.
+    #[arg(long, requires = "mcap")]
+    pub mcap_ros2: bool,
+    /// With --mcap: how the file's chunks are compressed.
+    #[arg(long, value_enum, default_value_t = crate::recording::CompressionArg::None, requires = "mcap")]
+    pub mcap_compression: crate::recording::CompressionArg,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: NetArgs,
@@ -98,6 +105,8 @@ fn run_node(args: Args) -> Result<()> {
         &crate::recording::McapArgs {
             mcap: args.mcap.clone(),
             mcap_frames: 0.0,
+            mcap_ros2: args.mcap_ros2,
+            mcap_compression: args.mcap_compression,
         },
         &args.net.table,
         cal.cameras

@@ -1,10 +1,11 @@
-//! `--mcap FILE` and `--mcap-frames N` of `track` and `fuse`: the run's rows, as joint
-//! states too, and optionally downscaled frames, in an MCAP file that Foxglove and Rerun open
-//! (docs/network.md, "MCAP recordings").
+//! `--mcap FILE`, `--mcap-frames N`, `--mcap-ros2` and `--mcap-compression` of `track` and
+//! `fuse`: the run's rows, as joint states too, and optionally downscaled frames, in an MCAP
+//! file that Foxglove and Rerun open, or a ROS 2 bag of joint states (docs/formats.md, "MCAP
+//! recordings").
 
 use anyhow::{Context, Result};
 use rodtrack_core::Measurement;
-use rodtrack_io::mcap::{McapRecorder, RecordOptions};
+use rodtrack_io::mcap::{Compression, McapRecorder, Profile, RecordOptions};
 use rodtrack_io::{FrameBuffer, FrameMeta};
 use rodtrack_sdk::{Hooks, Progress};
 use std::path::PathBuf;
@@ -14,8 +15,27 @@ use std::sync::Arc;
 /// The recorded frames' longer side, px.
 const FRAME_MAX_SIDE_PX: usize = 480;
 
+/// How the recording's chunks are compressed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum CompressionArg {
+    /// Not compressed.
+    #[default]
+    None,
+    /// LZ4 frames.
+    Lz4,
+}
+
+impl From<CompressionArg> for Compression {
+    fn from(c: CompressionArg) -> Self {
+        match c {
+            CompressionArg::None => Compression::None,
+            CompressionArg::Lz4 => Compression::Lz4,
+        }
+    }
+}
+
 /// The recording's options.
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone, Default, clap::Args)]
 pub struct McapArgs {
     /// Also record the rows (each camera's and the fused ones) and the rods as joints to this
     /// MCAP file, for Foxglove or Rerun (docs/network.md).
@@ -25,6 +45,13 @@ pub struct McapArgs {
     /// (0: none).
     #[arg(long, default_value_t = 0.0, requires = "mcap")]
     pub mcap_frames: f64,
+    /// With --mcap: write a ROS 2 bag instead (MCAP profile ros2, for rosbag2 and rosbags):
+    /// the rods as sensor_msgs/msg/JointState in CDR, per camera and fused; no rows, no frames.
+    #[arg(long, requires = "mcap")]
+    pub mcap_ros2: bool,
+    /// With --mcap: how the file's chunks are compressed.
+    #[arg(long, value_enum, default_value_t = CompressionArg::None, requires = "mcap")]
+    pub mcap_compression: CompressionArg,
 }
 
 /// Opens the recording when `--mcap` was given; `cameras` are the calibration's (index,
@@ -43,10 +70,21 @@ pub fn open(
             args.mcap_frames
         );
     }
+    if args.mcap_ros2 && args.mcap_frames > 0.0 {
+        anyhow::bail!(
+            "--mcap-frames with --mcap-ros2: a ROS 2 bag of rodtrack holds joint states only"
+        );
+    }
     let options = RecordOptions {
         table: table.to_string(),
         cameras,
         frames_per_s: args.mcap_frames,
+        profile: if args.mcap_ros2 {
+            Profile::Ros2
+        } else {
+            Profile::Rodtrack
+        },
+        compression: args.mcap_compression.into(),
         ..RecordOptions::default()
     };
     let rec = McapRecorder::create(path, options)

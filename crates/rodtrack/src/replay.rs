@@ -52,6 +52,12 @@ fn run_replay(args: Args) -> Result<()> {
 
     let NetworkArg::Zenoh = args.publish;
     let file = rodtrack_io::mcap::read_mcap(&args.file)?;
+    if file.profile == "ros2" {
+        anyhow::bail!(
+            "{} is a ROS 2 bag (--mcap-ros2: joint states only); replay plays the rows of a recording made without --mcap-ros2",
+            args.file.display()
+        );
+    }
     if let Some(cut) = &file.cut {
         eprintln!("warning: {}: {cut}", args.file.display());
     }

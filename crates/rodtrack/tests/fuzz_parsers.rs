@@ -453,47 +453,66 @@ fn fuzz_measurement_files() {
 
 #[test]
 fn fuzz_mcap_recordings() {
-    use rodtrack_io::mcap::{parse_mcap, parse_rows_message, ChunkLimits, McapRecorder};
+    use rodtrack_io::mcap::{
+        parse_mcap, parse_rows_message, ChunkLimits, Compression, JointState, McapRecorder, Profile,
+    };
     use rodtrack_io::MeasurementSink;
-    // A small real recording (several chunks, rows and joints of two cameras and the
-    // fusion) as the seed: what `rodtrack replay` reads.
+    // Small real recordings (several chunks, two cameras and the fusion) as the seeds: what
+    // `rodtrack replay` reads, uncompressed and in LZ4 chunks, and a ROS 2 bag of joint
+    // states in CDR (LZ4 chunks).
     let dir = std::env::temp_dir().join(format!("rodtrack-fuzz-mcap-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("seed.mcap");
-    let rec = McapRecorder::create(
-        &path,
-        rodtrack_io::mcap::RecordOptions {
-            table: "t".into(),
-            cameras: vec![(0, "cam0".into()), (1, "cam1".into())],
-            chunk: ChunkLimits {
-                span_ns: 10_000_000,
-                bytes: 1 << 20,
+    let mut seeds = Vec::new();
+    for (k, (profile, compression)) in [
+        (Profile::Rodtrack, Compression::None),
+        (Profile::Rodtrack, Compression::Lz4),
+        (Profile::Ros2, Compression::Lz4),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let path = dir.join(format!("seed{k}.mcap"));
+        let rec = McapRecorder::create(
+            &path,
+            rodtrack_io::mcap::RecordOptions {
+                table: "t".into(),
+                cameras: vec![(0, "cam0".into()), (1, "cam1".into())],
+                chunk: ChunkLimits {
+                    span_ns: 10_000_000,
+                    bytes: 1 << 20,
+                },
+                frames_per_s: 0.0,
+                profile,
+                compression,
             },
-            frames_per_s: 0.0,
-        },
-    )
-    .unwrap();
-    let mut sink = rec.sink();
-    for f in 0..6u64 {
-        let rows: Vec<Measurement> = sample_rows()
-            .into_iter()
-            .map(|mut m| {
-                m.frame = f;
-                m.timestamp_ns = rodtrack_core::Timestamp(5_000_000 * f);
-                m
-            })
-            .collect();
-        sink.write(&rows).unwrap();
+        )
+        .unwrap();
+        let mut sink = rec.sink();
+        for f in 0..6u64 {
+            let rows: Vec<Measurement> = sample_rows()
+                .into_iter()
+                .map(|mut m| {
+                    m.frame = f;
+                    m.timestamp_ns = rodtrack_core::Timestamp(5_000_000 * f);
+                    m
+                })
+                .collect();
+            sink.write(&rows).unwrap();
+        }
+        sink.flush().unwrap();
+        rec.finish().unwrap();
+        let seed = std::fs::read(&path).unwrap();
+        let file = parse_mcap(&seed, Path::new("seed.mcap")).unwrap();
+        assert!(file.complete && !file.messages.is_empty());
+        seeds.push(seed);
     }
-    sink.flush().unwrap();
-    rec.finish().unwrap();
-    let seed = std::fs::read(&path).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
-    assert!(parse_mcap(&seed, Path::new("seed.mcap")).is_ok());
-    let n = fuzz("mcap", &[&seed], |b| {
+    let seeds: Vec<&[u8]> = seeds.iter().map(Vec::as_slice).collect();
+    let n = fuzz("mcap", &seeds, |b| {
         if let Ok(file) = parse_mcap(b, Path::new("f.mcap")) {
             for m in &file.messages {
                 let _ = parse_rows_message(&m.data);
+                let _ = JointState::from_cdr(&m.data);
             }
         }
     });

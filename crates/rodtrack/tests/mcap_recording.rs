@@ -274,3 +274,111 @@ fn a_recording_alone_is_an_output_and_a_bad_path_is_named() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("x.mcap"), "{err}");
 }
+
+/// A joint: its name, position and velocity.
+type Joint = (String, f64, f64);
+
+#[test]
+fn a_ros2_bag_in_lz4_chunks_holds_every_row_as_joint_states() {
+    use rodtrack_io::mcap::JointState;
+    let (dir, calib) = fixture();
+    let (csv, bag) = (dir.join("ros2.csv"), dir.join("ros2.mcap"));
+    let rec = dir.join("rec");
+    let o = rodtrack(&[
+        "track",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--input",
+        rec.join("cam0").to_str().unwrap(),
+        "--input",
+        rec.join("cam1").to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+        "--mcap",
+        bag.to_str().unwrap(),
+        "--mcap-ros2",
+        "--mcap-compression",
+        "lz4",
+        "--table",
+        "t1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&bag).unwrap();
+    // The header's profile (after the magic, the opcode and the length: a u32-long string).
+    assert_eq!(&bytes[17..25], b"\x04\0\0\0ros2");
+
+    // The CSV's rows with a value, as joints: (topic, ns) -> [(name, position, velocity)].
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut want: BTreeMap<(String, u64), Vec<Joint>> = BTreeMap::new();
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let (s, ns) = f[1].split_once('.').unwrap();
+        let t = s.parse::<u64>().unwrap() * 1_000_000_000 + ns.parse::<u64>().unwrap();
+        let topic = match f[2] {
+            "fused" => "/rodtrack/t1/fused/joint_states".to_string(),
+            k => format!("/rodtrack/t1/cam/cam{k}/joint_states"),
+        };
+        let entry = want.entry((topic, t)).or_default();
+        if !matches!(f[10], "ok" | "predicted" | "conflict") {
+            continue;
+        }
+        let num = |k: usize| f[k].parse::<f64>().unwrap();
+        entry.push((format!("rod{}_slide", f[3]), num(4) * 1e-3, num(7) * 1e-3));
+        entry.push((format!("rod{}_turn", f[3]), num(6), num(8)));
+    }
+    assert_eq!(want.len(), 3 * 40);
+
+    let mut seen = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert_eq!(m.channel.message_encoding, "cdr");
+        let schema = m.channel.schema.as_ref().unwrap();
+        assert_eq!(
+            (schema.name.as_str(), schema.encoding.as_str()),
+            ("sensor_msgs/msg/JointState", "ros2msg")
+        );
+        assert!(m.channel.metadata.contains_key("offered_qos_profiles"));
+        let js = JointState::from_cdr(&m.data).unwrap();
+        assert_eq!(js.stamp_ns(), m.log_time);
+        let w = &want[&(m.channel.topic.clone(), m.log_time)];
+        assert_eq!(js.name.len(), w.len());
+        assert!(js.effort.is_empty());
+        for (k, (name, p, v)) in w.iter().enumerate() {
+            // The CSV's decimals: 4 for mm, 6 for rad, 3 for mm/s, 4 for rad/s.
+            let (dp, dv) = if name.ends_with("slide") {
+                (0.5e-7, 0.5e-6)
+            } else {
+                (0.5e-6, 0.5e-4)
+            };
+            assert_eq!(&js.name[k], name);
+            assert!((js.position[k] - p).abs() <= dp * 1.001, "{name}");
+            assert!((js.velocity[k] - v).abs() <= dv * 1.001, "{name}");
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, want.len());
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
+    assert!(!summary.chunk_indexes.is_empty());
+    for ci in &summary.chunk_indexes {
+        assert_eq!(ci.compression, "lz4");
+        assert!(ci.compressed_size < ci.uncompressed_size);
+    }
+
+    // Frames have no place in the bag.
+    let o = rodtrack(&[
+        "track",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--input",
+        rec.join("cam0").to_str().unwrap(),
+        "--input",
+        rec.join("cam1").to_str().unwrap(),
+        "--mcap",
+        bag.to_str().unwrap(),
+        "--mcap-ros2",
+        "--mcap-frames",
+        "5",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--mcap-ros2"), "{err}");
+}

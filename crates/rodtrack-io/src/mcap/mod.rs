@@ -1,17 +1,20 @@
 //! MCAP recordings (<https://mcap.dev>), the container that Foxglove and Rerun open: a small
-//! writer and reader of the format itself (no dependency), and [`McapRecorder`], which records
-//! measurement rows, joint states and optional grey frames as JSON messages.
+//! writer and reader of the format itself (LZ4 through `lz4_flex`), and [`McapRecorder`],
+//! which records measurement rows, joint states and optional grey frames as JSON messages, or
+//! joint states as ROS 2 `sensor_msgs/msg/JointState` in CDR in a ROS 2 bag.
 //!
 //! - [`mod@write`]: [`McapWriter`], records little endian (opcode `u8`, length `u64`, fields):
 //!   the magic, `Header`, then `Schema` and `Channel` records as they are first used, the
-//!   messages in uncompressed `Chunk`s each followed by its `MessageIndex` records, `DataEnd`
+//!   messages in `Chunk`s (uncompressed or LZ4 frames, [`Compression`]) each followed by its
+//!   `MessageIndex` records, `DataEnd`
 //!   (with the data section's CRC-32), a summary section (schemas, channels, `Statistics`,
 //!   `ChunkIndex` records, `SummaryOffset`s), the `Footer` and the magic again. Files are
 //!   indexed, so that viewers seek instead of reading the whole file.
 //! - [`mod@read`]: [`read_mcap`], the schemas, channels and messages of a file in file order,
-//!   from uncompressed chunks or outside chunks; a file cut short (a crash) gives the
+//!   from chunks (uncompressed or LZ4) or outside chunks; a file cut short (a crash) gives the
 //!   complete chunks before the cut.
-//! - [`record`]: [`McapRecorder`], the channels and JSON schemas of rodtrack's recordings.
+//! - [`record`]: [`McapRecorder`], the channels and schemas of rodtrack's recordings.
+//! - [`ros2`]: [`JointState`] in CDR, its `ros2msg` schema and QoS metadata.
 //!
 //! What a crash leaves: every chunk closed before it (a chunk is closed after at most
 //! [`ChunkLimits::span_ns`] of log time or [`ChunkLimits::bytes`], and at every flush), with no
@@ -20,14 +23,18 @@
 
 pub mod read;
 pub mod record;
+pub mod ros2;
 pub mod write;
 
-pub use read::{parse_mcap, read_mcap, McapChannel, McapFile, McapMessage, McapSchema};
+pub use read::{
+    parse_mcap, read_mcap, McapChannel, McapFile, McapMessage, McapSchema, MAX_CHUNK_BYTES,
+};
 pub use record::{
-    parse_rows_message, McapRecorder, McapSink, RecordOptions, RowsMessage, IMAGE_SCHEMA,
+    parse_rows_message, McapRecorder, McapSink, Profile, RecordOptions, RowsMessage, IMAGE_SCHEMA,
     IMAGE_SCHEMA_NAME, JOINTS_SCHEMA, JOINTS_SCHEMA_NAME, ROWS_SCHEMA, ROWS_SCHEMA_NAME,
 };
-pub use write::{ChunkLimits, McapWriter, WriteSummary};
+pub use ros2::{JointState, JOINT_STATE_MSGDEF, JOINT_STATE_SCHEMA_NAME};
+pub use write::{ChunkLimits, Compression, McapWriter, WriteSummary};
 
 /// The 8 bytes at the start and the end of an MCAP file.
 pub const MAGIC: [u8; 8] = [0x89, b'M', b'C', b'A', b'P', b'0', b'\r', b'\n'];

@@ -1,15 +1,21 @@
 //! [`read_mcap`]: the schemas, channels and messages of an MCAP file, in file order.
 //!
 //! Reads the data section record by record: `Schema`, `Channel` and `Message` records, and
-//! the same inside uncompressed `Chunk`s (whose CRC is checked when it is given). Other
-//! records are skipped. A compressed chunk is refused with its compression named. A file cut
+//! the same inside `Chunk`s, uncompressed or LZ4 frames (at most [`MAX_CHUNK_BYTES`]
+//! uncompressed; the CRC is checked when it is given). Other records are skipped. A chunk
+//! compressed otherwise (zstd) is refused with its compression named. A file cut
 //! short (a crash while recording) gives what precedes the cut, with
 //! [`McapFile::complete`] false and the reason in [`McapFile::cut`].
 
 use super::{op, Crc32, MAGIC};
 use crate::IoError;
 use std::collections::BTreeMap;
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
+
+/// The largest uncompressed chunk read, bytes (writers' chunks are a few MiB; a larger
+/// claim is refused before anything is allocated for it).
+pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
 /// A schema record.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -57,6 +63,8 @@ pub struct McapMessage {
 /// What [`read_mcap`] found.
 #[derive(Debug, Clone, Default)]
 pub struct McapFile {
+    /// The header's profile field (`ros2`, or empty).
+    pub profile: String,
     /// The header's library field.
     pub library: String,
     /// Schemas by id.
@@ -203,7 +211,7 @@ impl Reader<'_, '_> {
         };
         match opcode {
             op::HEADER => {
-                let _profile = f.string().ok_or_else(short)?;
+                self.file.profile = f.string().ok_or_else(short)?;
                 self.file.library = f.string().ok_or_else(short)?;
             }
             op::SCHEMA => {
@@ -268,11 +276,19 @@ impl Reader<'_, '_> {
                     .ok()
                     .and_then(|n| f.take(n))
                     .ok_or_else(short)?;
-                if !compression.is_empty() {
-                    return Err((self.bad)(format!(
-                        "the chunk at byte {at} is compressed ({compression}); this reader reads uncompressed chunks (rodtrack writes those)"
-                    )));
-                }
+                let unpacked;
+                let records = match compression.as_str() {
+                    "" => records,
+                    "lz4" => {
+                        unpacked = self.lz4(records, size, at)?;
+                        &unpacked[..]
+                    }
+                    other => {
+                        return Err((self.bad)(format!(
+                            "the chunk at byte {at} is compressed with {other:?}; this reader reads uncompressed and lz4 chunks (rodtrack writes those)"
+                        )));
+                    }
+                };
                 if records.len() as u64 != size || (crc != 0 && Crc32::of(records) != crc) {
                     return Err((self.bad)(format!(
                         "the chunk at byte {at} is damaged (its size or CRC does not match)"
@@ -284,5 +300,25 @@ impl Reader<'_, '_> {
             _ => {}
         }
         Ok(false)
+    }
+
+    /// An LZ4 frame's content, `size` bytes (at most [`MAX_CHUNK_BYTES`]; memory grows with
+    /// what the frame really holds, not with `size`).
+    fn lz4(&self, packed: &[u8], size: u64, at: usize) -> Result<Vec<u8>, IoError> {
+        if size > MAX_CHUNK_BYTES {
+            return Err((self.bad)(format!(
+                "the chunk at byte {at} claims {size} bytes uncompressed, more than the {MAX_CHUNK_BYTES} read"
+            )));
+        }
+        let mut out = Vec::with_capacity(packed.len().saturating_mul(4).min(size as usize));
+        lz4_flex::frame::FrameDecoder::new(packed)
+            .take(size + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| {
+                (self.bad)(format!(
+                    "the chunk at byte {at} is damaged (its LZ4 frame: {e})"
+                ))
+            })?;
+        Ok(out)
     }
 }

@@ -12,8 +12,18 @@
 //!
 //! Every message's log time and publish time are the frame's capture timestamp, ns. Each
 //! channel's metadata names its `table` and `camera`.
+//!
+//! With [`Profile::Ros2`] the file is a ROS 2 bag instead (MCAP profile `ros2`, what rosbag2
+//! and rosbags read): only `sensor_msgs/msg/JointState` messages in CDR (schema encoding
+//! `ros2msg`), on `/rodtrack/<table>/cam/<camera>/joint_states` and
+//! `/rodtrack/<table>/fused/joint_states` (names made ROS names by
+//! [`super::ros2::ros_name_token`]), each channel with its `offered_qos_profiles`. The
+//! profile admits no other encoding, so the rows and frames are not in that file.
 
-use super::write::{ChunkLimits, McapWriter, WriteSummary};
+use super::ros2::{
+    ros_name_token, JointState, JOINT_STATE_MSGDEF, JOINT_STATE_QOS, JOINT_STATE_SCHEMA_NAME,
+};
+use super::write::{ChunkLimits, Compression, McapWriter, WriteSummary};
 use crate::IoError;
 use crate::MeasurementSink;
 use rodtrack_core::{CameraId, FrameView, Measurement, Status};
@@ -100,9 +110,23 @@ pub const IMAGE_SCHEMA: &str = r#"{
   }
 }"#;
 
+/// What kind of file a recording is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Profile {
+    /// rodtrack's (no MCAP profile): rows and joints as JSON, frames as `foxglove.RawImage`.
+    #[default]
+    Rodtrack,
+    /// A ROS 2 bag (MCAP profile `ros2`): joint states in CDR only.
+    Ros2,
+}
+
 /// What a recording holds and how it is cut into chunks.
 #[derive(Debug, Clone, Default)]
 pub struct RecordOptions {
+    /// What kind of file.
+    pub profile: Profile,
+    /// How chunks are compressed.
+    pub compression: Compression,
     /// The table's name in the topics.
     pub table: String,
     /// The cameras' names by index (a camera not listed is named by its index).
@@ -126,6 +150,7 @@ pub struct McapRecorder {
 enum Topic {
     Rows(CameraId),
     Joints(CameraId),
+    JointStates(CameraId),
     Image(u32),
 }
 
@@ -144,6 +169,7 @@ struct Inner {
     /// The last frame recorded per camera, ns.
     last_frame_ns: BTreeMap<u32, u64>,
     json: Vec<u8>,
+    cdr: Vec<u8>,
     groups: Vec<(CameraId, u64, u64)>,
 }
 
@@ -152,7 +178,18 @@ impl McapRecorder {
     pub fn create(path: &Path, options: RecordOptions) -> Result<Self, IoError> {
         let f = File::create(path).map_err(|e| IoError::file(path, "cannot create", e))?;
         let library = concat!("rodtrack ", env!("CARGO_PKG_VERSION"));
-        let writer = McapWriter::new(f, path, library, options.chunk)?;
+        let profile = match options.profile {
+            Profile::Rodtrack => "",
+            Profile::Ros2 => "ros2",
+        };
+        let writer = McapWriter::new(
+            f,
+            path,
+            profile,
+            library,
+            options.chunk,
+            options.compression,
+        )?;
         Ok(McapRecorder {
             inner: Arc::new(Mutex::new(Inner {
                 writer,
@@ -162,6 +199,7 @@ impl McapRecorder {
                 channels: Vec::new(),
                 last_frame_ns: BTreeMap::new(),
                 json: Vec::with_capacity(4096),
+                cdr: Vec::with_capacity(1024),
                 groups: Vec::new(),
             })),
         })
@@ -178,10 +216,11 @@ impl McapRecorder {
         }
     }
 
-    /// Whether frames are recorded at all ([`RecordOptions::frames_per_s`] above 0).
+    /// Whether frames are recorded at all ([`RecordOptions::frames_per_s`] above 0, not a
+    /// ROS 2 bag).
     pub fn wants_frames(&self) -> bool {
-        let fps = self.lock().options.frames_per_s;
-        fps > 0.0 && fps.is_finite()
+        let o = &self.lock().options;
+        o.frames_per_s > 0.0 && o.frames_per_s.is_finite() && o.profile == Profile::Rodtrack
     }
 
     /// Whether a frame of `camera` captured at `timestamp_ns` is to be recorded (at most
@@ -210,6 +249,9 @@ impl McapRecorder {
         grey: &[u8],
     ) -> Result<(), IoError> {
         let mut inner = self.lock();
+        if inner.options.profile == Profile::Ros2 {
+            return Err(inner.bad("a ROS 2 bag holds no frames".into()));
+        }
         if grey.len() != width * height {
             let reason = format!(
                 "a {width}x{height} frame of {} bytes cannot be recorded",
@@ -321,9 +363,18 @@ impl Inner {
             CameraId::Fused => format!("/rodtrack/{t}/fused"),
             c => format!("/rodtrack/{t}/cam/{}", self.camera_name(c)),
         };
+        let ros_prefix = |c: CameraId| match c {
+            CameraId::Fused => format!("/rodtrack/{}/fused", ros_name_token(t)),
+            c => format!(
+                "/rodtrack/{}/cam/{}",
+                ros_name_token(t),
+                ros_name_token(&self.camera_name(c))
+            ),
+        };
         match topic {
             Topic::Rows(c) => format!("{}/rows", prefix(c)),
             Topic::Joints(c) => format!("{}/joints", prefix(c)),
+            Topic::JointStates(c) => format!("{}/joint_states", ros_prefix(c)),
             Topic::Image(c) => format!("{}/image", prefix(CameraId::Camera(c))),
         }
     }
@@ -331,17 +382,18 @@ impl Inner {
     /// The channel of `topic`, added (with its schema) when first used.
     fn channel(&mut self, topic: Topic) -> Result<&mut Channel, IoError> {
         if !self.channels.iter().any(|(t, _)| *t == topic) {
-            let (schema_name, schema) = match topic {
-                Topic::Rows(_) => (ROWS_SCHEMA_NAME, ROWS_SCHEMA),
-                Topic::Joints(_) => (JOINTS_SCHEMA_NAME, JOINTS_SCHEMA),
-                Topic::Image(_) => (IMAGE_SCHEMA_NAME, IMAGE_SCHEMA),
+            let (schema_name, schema, encoding) = match topic {
+                Topic::Rows(_) => (ROWS_SCHEMA_NAME, ROWS_SCHEMA, "jsonschema"),
+                Topic::Joints(_) => (JOINTS_SCHEMA_NAME, JOINTS_SCHEMA, "jsonschema"),
+                Topic::JointStates(_) => (JOINT_STATE_SCHEMA_NAME, JOINT_STATE_MSGDEF, "ros2msg"),
+                Topic::Image(_) => (IMAGE_SCHEMA_NAME, IMAGE_SCHEMA, "jsonschema"),
             };
             let schema_id = match self.schemas.get(schema_name) {
                 Some(&id) => id,
                 None => {
-                    let id =
-                        self.writer
-                            .add_schema(schema_name, "jsonschema", schema.as_bytes())?;
+                    let id = self
+                        .writer
+                        .add_schema(schema_name, encoding, schema.as_bytes())?;
                     self.schemas.insert(schema_name, id);
                     id
                 }
@@ -353,15 +405,20 @@ impl Inner {
                 self.options.table.clone()
             };
             let camera = match topic {
-                Topic::Rows(c) | Topic::Joints(c) => self.camera_name(c),
+                Topic::Rows(c) | Topic::Joints(c) | Topic::JointStates(c) => self.camera_name(c),
                 Topic::Image(c) => self.camera_name(CameraId::Camera(c)),
             };
-            let id = self.writer.add_channel(
-                schema_id,
-                &name,
-                "json",
-                &[("table", &table), ("camera", &camera)],
-            )?;
+            let mut metadata = vec![("table", table.as_str()), ("camera", camera.as_str())];
+            let message_encoding = match topic {
+                Topic::JointStates(_) => {
+                    metadata.insert(0, ("offered_qos_profiles", JOINT_STATE_QOS));
+                    "cdr"
+                }
+                _ => "json",
+            };
+            let id = self
+                .writer
+                .add_channel(schema_id, &name, message_encoding, &metadata)?;
             self.channels.push((topic, Channel { id, sequence: 0 }));
         }
         self.channels
@@ -384,6 +441,9 @@ impl Inner {
             return Ok(());
         };
         let (frame, time_ns) = (first.frame, first.timestamp_ns.as_nanos());
+        if self.options.profile == Profile::Ros2 {
+            return self.joint_states(camera, rows, time_ns);
+        }
         let name = self.camera_name(camera);
         let mut json = std::mem::take(&mut self.json);
         json.clear();
@@ -419,6 +479,38 @@ impl Inner {
         self.json = json;
         r?;
         self.joints(camera, rows, time_ns)
+    }
+
+    /// The rows as a ROS 2 joint state in CDR.
+    fn joint_states(
+        &mut self,
+        camera: CameraId,
+        rows: &[&Measurement],
+        time_ns: u64,
+    ) -> Result<(), IoError> {
+        let mut m = JointState::default();
+        m.set_stamp_ns(time_ns);
+        m.frame_id = self
+            .topic_name(Topic::Rows(camera))
+            .trim_start_matches('/')
+            .trim_end_matches("/rows")
+            .to_string();
+        for r in rows.iter().map(|r| r.sanitized()) {
+            if !matches!(r.status, Status::Ok | Status::Predicted | Status::Conflict) {
+                continue;
+            }
+            m.name.push(format!("rod{}_slide", r.rod));
+            m.position.push(r.position_mm * 1e-3);
+            m.velocity.push(r.velocity_mm_s * 1e-3);
+            m.name.push(format!("rod{}_turn", r.rod));
+            m.position.push(r.angle_unwrapped_rad);
+            m.velocity.push(r.angular_velocity_rad_s);
+        }
+        let mut cdr = std::mem::take(&mut self.cdr);
+        m.to_cdr(&mut cdr);
+        let r = self.message(Topic::JointStates(camera), time_ns, &cdr);
+        self.cdr = cdr;
+        r
     }
 
     /// The rows as a joint state.

@@ -1,4 +1,4 @@
-//! [`McapWriter`]: an indexed MCAP file with uncompressed chunks.
+//! [`McapWriter`]: an indexed MCAP file, its chunks uncompressed or LZ4 frames.
 //!
 //! Records are written little endian: opcode `u8`, content length `u64`, content. Strings
 //! and byte arrays carry a `u32` length, maps a `u32` byte length. The writer keeps the open
@@ -27,6 +27,26 @@ impl Default for ChunkLimits {
         ChunkLimits {
             span_ns: 1_000_000_000,
             bytes: 1 << 20,
+        }
+    }
+}
+
+/// How chunks are compressed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compression {
+    /// Not compressed.
+    #[default]
+    None,
+    /// LZ4 frames (the MCAP specification's `lz4`), pure Rust (`lz4_flex`).
+    Lz4,
+}
+
+impl Compression {
+    /// The name in chunk records: empty or `lz4`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::None => "",
+            Compression::Lz4 => "lz4",
         }
     }
 }
@@ -88,6 +108,9 @@ pub struct McapWriter<W: Write> {
     out: Option<Out<W>>,
     name: PathBuf,
     limits: ChunkLimits,
+    compression: Compression,
+    /// The open chunk compressed (kept between chunks).
+    packed: Vec<u8>,
     /// The schema and channel records, for the summary.
     schema_records: Vec<u8>,
     channel_records: Vec<u8>,
@@ -107,13 +130,15 @@ pub struct McapWriter<W: Write> {
 }
 
 impl<W: Write> McapWriter<W> {
-    /// Starts a file on `w` (the magic and the header record, `library` named in it); `name`
-    /// is used in error messages.
+    /// Starts a file on `w` (the magic and the header record: `profile`, empty or e.g.
+    /// `ros2`, and `library`); `name` is used in error messages.
     pub fn new(
         w: W,
         name: impl Into<PathBuf>,
+        profile: &str,
         library: &str,
         limits: ChunkLimits,
+        compression: Compression,
     ) -> Result<Self, IoError> {
         let mut m = McapWriter {
             out: Some(Out {
@@ -123,6 +148,8 @@ impl<W: Write> McapWriter<W> {
             }),
             name: name.into(),
             limits,
+            compression,
+            packed: Vec::new(),
             schema_records: Vec::new(),
             channel_records: Vec::new(),
             schemas: 0,
@@ -138,7 +165,7 @@ impl<W: Write> McapWriter<W> {
             failed: false,
         };
         let mut content = Vec::new();
-        push_str(&mut content, ""); // profile
+        push_str(&mut content, profile);
         push_str(&mut content, library);
         let mut rec = MAGIC.to_vec();
         push_record(&mut rec, op::HEADER, &content);
@@ -283,21 +310,35 @@ impl<W: Write> McapWriter<W> {
         };
         let chunk_start = self.out.as_ref().map_or(0, |o| o.pos);
         let size = self.chunk.len() as u64;
+        let compression = self.compression;
+        if compression == Compression::Lz4 {
+            self.pack()?;
+        }
+        let stored = match compression {
+            Compression::None => size,
+            Compression::Lz4 => self.packed.len() as u64,
+        };
         let mut rec = std::mem::take(&mut self.scratch);
         rec.clear();
         rec.push(op::CHUNK);
-        let content_len = 8 + 8 + 8 + 4 + 4 + 8 + size;
+        let content_len = 8 + 8 + 8 + 4 + 4 + compression.name().len() as u64 + 8 + stored;
         rec.extend_from_slice(&content_len.to_le_bytes());
         rec.extend_from_slice(&start.to_le_bytes());
         rec.extend_from_slice(&end.to_le_bytes());
         rec.extend_from_slice(&size.to_le_bytes());
         rec.extend_from_slice(&Crc32::of(&self.chunk).to_le_bytes());
-        push_str(&mut rec, ""); // no compression
-        rec.extend_from_slice(&size.to_le_bytes());
+        push_str(&mut rec, compression.name());
+        rec.extend_from_slice(&stored.to_le_bytes());
         let r = self.raw(&rec).and_then(|()| {
-            let chunk = std::mem::take(&mut self.chunk);
-            let r = self.raw(&chunk);
-            self.chunk = chunk;
+            let body = match compression {
+                Compression::None => std::mem::take(&mut self.chunk),
+                Compression::Lz4 => std::mem::take(&mut self.packed),
+            };
+            let r = self.raw(&body);
+            match compression {
+                Compression::None => self.chunk = body,
+                Compression::Lz4 => self.packed = body,
+            }
             r
         });
         self.scratch = rec;
@@ -323,12 +364,32 @@ impl<W: Write> McapWriter<W> {
         }
         push_bytes32(&mut c, &offsets);
         c.extend_from_slice(&(records.len() as u64).to_le_bytes());
-        push_str(&mut c, "");
-        c.extend_from_slice(&size.to_le_bytes()); // compressed size: the records' size
+        push_str(&mut c, compression.name());
+        c.extend_from_slice(&stored.to_le_bytes());
         c.extend_from_slice(&size.to_le_bytes());
         push_record(&mut self.chunk_index_records, op::CHUNK_INDEX, &c);
         self.chunks += 1;
         self.flush_out()
+    }
+
+    /// Compresses the open chunk into `packed` (an LZ4 frame).
+    fn pack(&mut self) -> Result<(), IoError> {
+        let mut packed = std::mem::take(&mut self.packed);
+        packed.clear();
+        let mut enc = lz4_flex::frame::FrameEncoder::new(packed);
+        let r = enc
+            .write_all(&self.chunk)
+            .and_then(|()| enc.finish().map_err(std::io::Error::other));
+        match r {
+            Ok(p) => {
+                self.packed = p;
+                Ok(())
+            }
+            Err(e) => {
+                self.failed = true;
+                Err(self.error(e))
+            }
+        }
     }
 
     /// Writes the open chunk and pushes everything written to the file.

@@ -1,0 +1,331 @@
+//! ROS 2 in MCAP: `sensor_msgs/msg/JointState` in CDR, its `ros2msg` schema, and the channel
+//! metadata of the `ros2` profile (what rosbag2's MCAP storage writes and reads).
+//!
+//! CDR here is XCDR1 ("plain CDR") little endian, as ROS 2's middlewares send it: a 4-byte
+//! encapsulation header `00 01 00 00` (CDR_LE), then the fields in order, each aligned to its
+//! own size (at most 8) counted from the end of the header. A `string` is a `u32` length that
+//! counts its NUL, the bytes and the NUL; a sequence is a `u32` count then its elements
+//! (`float64` elements 8-byte aligned, no padding when the sequence is empty). Nothing is
+//! padded after the last field.
+
+use std::fmt;
+
+/// The joint states' schema name (ROS 2's `sensor_msgs/msg/JointState`).
+pub const JOINT_STATE_SCHEMA_NAME: &str = "sensor_msgs/msg/JointState";
+
+/// The joint state's message definition in ROS 2's `.msg` language, with the types it uses
+/// appended as rosbag2 writes them (a line of 80 `=`, `MSG: package/Type`, its definition).
+/// Comments are left out: the fields are those of ROS 2's `common_interfaces` and
+/// `rcl_interfaces`.
+pub const JOINT_STATE_MSGDEF: &str = "std_msgs/Header header\n\
+\n\
+string[] name\n\
+float64[] position\n\
+float64[] velocity\n\
+float64[] effort\n\
+\n\
+================================================================================\n\
+MSG: std_msgs/Header\n\
+builtin_interfaces/Time stamp\n\
+string frame_id\n\
+\n\
+================================================================================\n\
+MSG: builtin_interfaces/Time\n\
+int32 sec\n\
+uint32 nanosec\n";
+
+/// The `offered_qos_profiles` of the joint state channels (required by the MCAP `ros2`
+/// profile): one publisher, reliable, volatile, keep last 10, with rmw's default deadline,
+/// lifespan and liveliness; the policies as rmw's enum numbers (rosbags reads numbers or
+/// names; rosbag2 itself was not run on these files).
+pub const JOINT_STATE_QOS: &str = "- history: 1\n  depth: 10\n  reliability: 1\n  durability: 2\n  deadline:\n    sec: 0\n    nsec: 0\n  lifespan:\n    sec: 0\n    nsec: 0\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 0\n    nsec: 0\n  avoid_ros_namespace_conventions: false";
+
+/// The CDR encapsulation header: plain CDR, little endian, no options.
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// A `sensor_msgs/msg/JointState`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct JointState {
+    /// `header.stamp.sec`, s.
+    pub stamp_sec: i32,
+    /// `header.stamp.nanosec`, ns.
+    pub stamp_nanosec: u32,
+    /// `header.frame_id`.
+    pub frame_id: String,
+    /// The joints' names.
+    pub name: Vec<String>,
+    /// Positions: m for a slide, rad for a turn.
+    pub position: Vec<f64>,
+    /// Velocities: m/s, rad/s.
+    pub velocity: Vec<f64>,
+    /// Efforts (rodtrack leaves them empty).
+    pub effort: Vec<f64>,
+}
+
+impl JointState {
+    /// The stamp of a time in ns since the epoch (seconds past `i32::MAX` are held there).
+    pub fn set_stamp_ns(&mut self, time_ns: u64) {
+        self.stamp_sec = i32::try_from(time_ns / 1_000_000_000).unwrap_or(i32::MAX);
+        self.stamp_nanosec = (time_ns % 1_000_000_000) as u32;
+    }
+
+    /// The stamp in ns (0 before the epoch).
+    pub fn stamp_ns(&self) -> u64 {
+        u64::try_from(self.stamp_sec).unwrap_or(0) * 1_000_000_000 + u64::from(self.stamp_nanosec)
+    }
+
+    /// The message in CDR, appended to `out` (cleared first).
+    pub fn to_cdr(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&CDR_LE_HEADER);
+        let mut w = CdrWriter { out };
+        w.u32(self.stamp_sec as u32);
+        w.u32(self.stamp_nanosec);
+        w.string(&self.frame_id);
+        w.u32(self.name.len() as u32);
+        for n in &self.name {
+            w.string(n);
+        }
+        for seq in [&self.position, &self.velocity, &self.effort] {
+            w.f64s(seq);
+        }
+    }
+
+    /// Parses a joint state in CDR (either byte order); never allocates more than the
+    /// message's size.
+    pub fn from_cdr(data: &[u8]) -> Result<JointState, CdrError> {
+        let (header, body) = data.split_at_checked(4).ok_or(CdrError::Short(0))?;
+        let little = match header {
+            [0, 1, _, _] => true,
+            [0, 0, _, _] => false,
+            _ => return Err(CdrError::Encapsulation([header[0], header[1]])),
+        };
+        let mut r = CdrReader {
+            b: body,
+            at: 0,
+            little,
+        };
+        let stamp_sec = r.u32()? as i32;
+        let stamp_nanosec = r.u32()?;
+        let frame_id = r.string()?;
+        let n = r.count(4)?;
+        let mut name = Vec::with_capacity(n);
+        for _ in 0..n {
+            name.push(r.string()?);
+        }
+        let position = r.f64s()?;
+        let velocity = r.f64s()?;
+        let effort = r.f64s()?;
+        Ok(JointState {
+            stamp_sec,
+            stamp_nanosec,
+            frame_id,
+            name,
+            position,
+            velocity,
+            effort,
+        })
+    }
+}
+
+/// Why CDR bytes are not a joint state.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CdrError {
+    /// The bytes end before the field at this offset (after the header).
+    Short(usize),
+    /// Not a plain CDR encapsulation (its first two bytes).
+    Encapsulation([u8; 2]),
+    /// A string that is not NUL-terminated UTF-8, at this offset.
+    BadString(usize),
+}
+
+impl fmt::Display for CdrError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CdrError::Short(at) => write!(f, "the CDR message ends early (field at byte {at})"),
+            CdrError::Encapsulation(b) => {
+                write!(f, "not a plain CDR message (encapsulation {b:02x?})")
+            }
+            CdrError::BadString(at) => write!(f, "a CDR string at byte {at} is not valid"),
+        }
+    }
+}
+
+impl std::error::Error for CdrError {}
+
+/// Appends CDR fields after the 4-byte header (alignment counts from there).
+struct CdrWriter<'a> {
+    out: &'a mut Vec<u8>,
+}
+
+impl CdrWriter<'_> {
+    fn align(&mut self, n: usize) {
+        let at = self.out.len() - CDR_LE_HEADER.len();
+        let pad = (n - at % n) % n;
+        self.out.resize(self.out.len() + pad, 0);
+    }
+    fn u32(&mut self, v: u32) {
+        self.align(4);
+        self.out.extend_from_slice(&v.to_le_bytes());
+    }
+    fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.out.extend_from_slice(s.as_bytes());
+        self.out.push(0);
+    }
+    fn f64s(&mut self, v: &[f64]) {
+        self.u32(v.len() as u32);
+        if !v.is_empty() {
+            self.align(8);
+        }
+        for x in v {
+            self.out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+}
+
+/// Reads CDR fields of a body (the bytes after the header).
+struct CdrReader<'a> {
+    b: &'a [u8],
+    at: usize,
+    little: bool,
+}
+
+impl<'a> CdrReader<'a> {
+    fn align(&mut self, n: usize) {
+        self.at = self.at.div_ceil(n).saturating_mul(n);
+    }
+    fn take(&mut self, n: usize) -> Result<&'a [u8], CdrError> {
+        let at = self.at;
+        let s = at
+            .checked_add(n)
+            .and_then(|end| self.b.get(at..end))
+            .ok_or(CdrError::Short(at))?;
+        self.at = at + n;
+        Ok(s)
+    }
+    fn u32(&mut self) -> Result<u32, CdrError> {
+        self.align(4);
+        let at = self.at;
+        let b: [u8; 4] = self.take(4)?.try_into().map_err(|_| CdrError::Short(at))?;
+        Ok(if self.little {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        })
+    }
+    /// A sequence's count, checked against the bytes left at `min_size` bytes an element.
+    fn count(&mut self, min_size: usize) -> Result<usize, CdrError> {
+        self.align(4);
+        let at = self.at;
+        let n = self.u32()? as usize;
+        if n.saturating_mul(min_size) > self.b.len().saturating_sub(self.at) {
+            return Err(CdrError::Short(at));
+        }
+        Ok(n)
+    }
+    fn string(&mut self) -> Result<String, CdrError> {
+        let at = self.at;
+        let n = self.u32()? as usize;
+        let s = self.take(n)?;
+        match s.split_last() {
+            Some((0, text)) => {
+                String::from_utf8(text.to_vec()).map_err(|_| CdrError::BadString(at))
+            }
+            _ => Err(CdrError::BadString(at)),
+        }
+    }
+    fn f64s(&mut self) -> Result<Vec<f64>, CdrError> {
+        let n = self.count(8)?;
+        if n > 0 {
+            self.align(8);
+        }
+        let b = self.take(n.saturating_mul(8))?;
+        Ok(b.chunks_exact(8)
+            .map(|c| {
+                let a = [c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]];
+                if self.little {
+                    f64::from_le_bytes(a)
+                } else {
+                    f64::from_be_bytes(a)
+                }
+            })
+            .collect())
+    }
+}
+
+/// A token of a ROS 2 topic name: letters, digits and `_` (anything else becomes `_`), not
+/// starting with a digit (then `_` is put before it), never empty.
+pub fn ros_name_token(s: &str) -> String {
+    let mut t: String = s
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if t.is_empty() || t.starts_with(|c: char| c.is_ascii_digit()) {
+        t.insert(0, '_');
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn a_joint_state_has_the_cdr_layout_byte_for_byte() {
+        let mut m = JointState {
+            frame_id: "ab".into(),
+            name: vec!["j".into()],
+            position: vec![1.5],
+            velocity: vec![],
+            effort: vec![],
+            ..JointState::default()
+        };
+        m.set_stamp_ns(3_000_000_007);
+        let mut b = Vec::new();
+        m.to_cdr(&mut b);
+        let mut want = vec![0, 1, 0, 0];
+        want.extend_from_slice(&3u32.to_le_bytes()); // sec
+        want.extend_from_slice(&7u32.to_le_bytes()); // nanosec
+        want.extend_from_slice(&[3, 0, 0, 0, b'a', b'b', 0]); // frame_id "ab\0"
+        want.push(0); // pad to 4 (offset 15 -> 16)
+        want.extend_from_slice(&[1, 0, 0, 0]); // 1 name
+        want.extend_from_slice(&[2, 0, 0, 0, b'j', 0]); // "j\0", ends at 26
+        want.extend_from_slice(&[0, 0]); // pad to 28
+        want.extend_from_slice(&[1, 0, 0, 0]); // 1 position, ends at 32 (8-aligned)
+        want.extend_from_slice(&1.5f64.to_le_bytes());
+        want.extend_from_slice(&[0; 4]); // no velocity: no padding after the count
+        want.extend_from_slice(&[0; 4]); // no effort
+        assert_eq!(b, want);
+        assert_eq!(JointState::from_cdr(&b).unwrap(), m);
+        assert_eq!(m.stamp_ns(), 3_000_000_007);
+    }
+
+    #[test]
+    fn bad_cdr_is_an_error() {
+        let mut b = Vec::new();
+        JointState::default().to_cdr(&mut b);
+        assert!(JointState::from_cdr(&b).is_ok());
+        for n in 0..b.len() {
+            assert!(JointState::from_cdr(&b[..n]).is_err(), "cut at {n}");
+        }
+        // A sequence count far past the message's end allocates nothing.
+        let mut big = b.clone();
+        // (The names' count: after the stamp, 8 bytes, and the frame id, 4 + 1 padded to 8.)
+        big[20..24].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert_eq!(JointState::from_cdr(&big), Err(CdrError::Short(16)));
+        assert!(matches!(
+            JointState::from_cdr(&[0, 7, 0, 0]),
+            Err(CdrError::Encapsulation(_))
+        ));
+    }
+
+    #[test]
+    fn topic_tokens_are_ros_names() {
+        assert_eq!(ros_name_token("cam0"), "cam0");
+        assert_eq!(ros_name_token("0"), "_0");
+        assert_eq!(ros_name_token("left cam-1"), "left_cam_1");
+        assert_eq!(ros_name_token(""), "_");
+    }
+}
