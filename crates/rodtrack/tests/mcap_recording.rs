@@ -16,6 +16,36 @@ fn fixture() -> &'static (PathBuf, PathBuf) {
     F.get_or_init(|| two_cameras("mcap_recording", 40))
 }
 
+/// `track` of the fixture's recording (table `t1`) into `csv` and the MCAP file `mcap`, with
+/// the MCAP options `extra`.
+fn track_with_mcap(
+    dir: &Path,
+    calib: &Path,
+    csv: &Path,
+    mcap: &Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let rec = dir.join("rec");
+    let (cam0, cam1) = (rec.join("cam0"), rec.join("cam1"));
+    let mut args = vec![
+        "track",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--input",
+        cam0.to_str().unwrap(),
+        "--input",
+        cam1.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+        "--mcap",
+        mcap.to_str().unwrap(),
+        "--table",
+        "t1",
+    ];
+    args.extend_from_slice(extra);
+    rodtrack(&args)
+}
+
 /// `v` with `d` decimals as the files write it (no minus sign on a zero).
 fn fixed(v: f64, d: usize) -> String {
     let s = format!("{v:.d$}");
@@ -62,24 +92,7 @@ fn csv_lines(msg: &serde_json::Value) -> Vec<String> {
 fn the_recording_holds_every_row_of_the_csv_with_its_channels_and_indexes() {
     let (dir, calib) = fixture();
     let (csv, mcap) = (dir.join("rows.csv"), dir.join("rows.mcap"));
-    let rec = dir.join("rec");
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--out",
-        csv.to_str().unwrap(),
-        "--mcap",
-        mcap.to_str().unwrap(),
-        "--mcap-frames",
-        "50",
-        "--table",
-        "t1",
-    ]);
+    let o = track_with_mcap(dir, calib, &csv, &mcap, &["--mcap-frames", "50"]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
@@ -283,25 +296,13 @@ fn a_ros2_bag_in_lz4_chunks_holds_every_row_as_joint_states() {
     use rodtrack_io::mcap::JointState;
     let (dir, calib) = fixture();
     let (csv, bag) = (dir.join("ros2.csv"), dir.join("ros2.mcap"));
-    let rec = dir.join("rec");
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--out",
-        csv.to_str().unwrap(),
-        "--mcap",
-        bag.to_str().unwrap(),
-        "--mcap-ros2",
-        "--mcap-compression",
-        "lz4",
-        "--table",
-        "t1",
-    ]);
+    let o = track_with_mcap(
+        dir,
+        calib,
+        &csv,
+        &bag,
+        &["--mcap-ros2", "--mcap-compression", "lz4"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let bytes = std::fs::read(&bag).unwrap();
     // The header's profile (after the magic, the opcode and the length: a u32-long string).
@@ -365,20 +366,13 @@ fn a_ros2_bag_in_lz4_chunks_holds_every_row_as_joint_states() {
     }
 
     // Frames have no place in the bag.
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--mcap",
-        bag.to_str().unwrap(),
-        "--mcap-ros2",
-        "--mcap-frames",
-        "5",
-    ]);
+    let o = track_with_mcap(
+        dir,
+        calib,
+        &csv,
+        &bag,
+        &["--mcap-ros2", "--mcap-frames", "5"],
+    );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("--mcap-ros2"), "{err}");
 }

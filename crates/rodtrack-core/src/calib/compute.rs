@@ -6,7 +6,7 @@
 
 use super::file::{EnhancedParams, PaperParams, Residuals, RodCalibration};
 use super::inputs::{KnownPose, RodInputs};
-use super::kernel_search::paper_kernel_search;
+use super::kernel_search::{barcode_kernel, paper_kernel_search};
 use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
@@ -184,17 +184,7 @@ pub fn calibrate_rod_with(
             break;
         }
         for dir in [1i32, -1] {
-            let kpx: Vec<f32> = (0..len)
-                .map(|i| {
-                    let c = (((i as f64 + 0.5) / cell) as usize).min(kernel.len() - 1);
-                    let c = if dir > 0 { c } else { kernel.len() - 1 - c };
-                    if kernel[c] {
-                        0.0
-                    } else {
-                        1.0
-                    }
-                })
-                .collect();
+            let kpx = barcode_kernel(kernel, cell, dir, 0.0);
             corr.resize(n - len + 1, 0.0);
             runs.fill_from(&kpx);
             ncc_runs_prefix(&runs, &prefix, &prefix2, &mut corr);
@@ -632,20 +622,7 @@ fn paper_params(
     hysteresis(&filt, -PAPER_HYSTERESIS, PAPER_HYSTERESIS, &mut bin);
     // Kernel scale and direction that best match, on the paper's own binary line.
     let kernel = marker.kernel();
-    let expand = |cell: f64, dir: i32, black: f32| -> Vec<f32> {
-        let len = (kernel.len() as f64 * cell).round() as usize;
-        (0..len)
-            .map(|i| {
-                let c = (((i as f64 + 0.5) / cell) as usize).min(kernel.len() - 1);
-                let c = if dir > 0 { c } else { kernel.len() - 1 - c };
-                if kernel[c] {
-                    black
-                } else {
-                    1.0 - black
-                }
-            })
-            .collect()
-    };
+    let expand = |cell: f64, dir: i32, black: f32| barcode_kernel(kernel, cell, dir, black);
     let best = paper_kernel_search(&bin, |cell, dir| expand(cell, dir, 1.0));
     let (c2, cell_px, direction, p_ref) =
         best.ok_or_else(|| fail("paper line too short".into()))?;

@@ -3,6 +3,24 @@
 
 use crate::signal::{ncc_direct_at, ncc_runs_prefix, prefix_sums, KernelRuns, KernelStats};
 
+/// The barcode's kernel expanded to samples of `1 / cell` cells each (the sample count rounded),
+/// read from its far end when `dir` is negative: `black` where a cell is black, `1 - black`
+/// elsewhere.
+pub(super) fn barcode_kernel(kernel: &[bool], cell: f64, dir: i32, black: f32) -> Vec<f32> {
+    let len = (kernel.len() as f64 * cell).round() as usize;
+    (0..len)
+        .map(|i| {
+            let c = (((i as f64 + 0.5) / cell) as usize).min(kernel.len() - 1);
+            let c = if dir > 0 { c } else { kernel.len() - 1 - c };
+            if kernel[c] {
+                black
+            } else {
+                1.0 - black
+            }
+        })
+        .collect()
+}
+
 /// How far (in `C^2`) the prefix-sum form's values may lie from the direct form's, with room
 /// to spare: both are within a few 1e-5 of each other on lines of a few thousand samples.
 const CANDIDATE_MARGIN_C2: f32 = 1e-3;
@@ -31,34 +49,37 @@ pub(super) fn paper_kernel_search(
         })
         .flat_map(|c| [(c, 1), (c, -1)])
     };
-    // Pass 1: the largest C^2 of the fast form.
-    let mut fast_max: Option<f32> = None;
-    for (cell, dir) in scales() {
+    // The fast form's values for one scale and direction into `corr`; the kernel, or None
+    // where it does not fit the line.
+    let mut fast = |cell: f64, dir: i32, corr: &mut Vec<f32>| -> Option<Vec<f32>> {
         let k = expand(cell, dir);
         if k.len() + 1 >= bin.len() {
-            continue;
+            return None;
         }
         corr.resize(bin.len() - k.len() + 1, 0.0);
         runs.fill_from(&k);
-        ncc_runs_prefix(&runs, &prefix, &prefix2, &mut corr);
-        for &cv in &corr {
-            fast_max = Some(fast_max.map_or(cv * cv, |m| m.max(cv * cv)));
+        ncc_runs_prefix(&runs, &prefix, &prefix2, corr);
+        Some(k)
+    };
+    // Pass 1: the largest C^2 of the fast form.
+    let mut fast_max: Option<f32> = None;
+    for (cell, dir) in scales() {
+        if fast(cell, dir, &mut corr).is_some() {
+            for &cv in &corr {
+                fast_max = Some(fast_max.map_or(cv * cv, |m| m.max(cv * cv)));
+            }
         }
     }
     let floor = fast_max? - CANDIDATE_MARGIN_C2;
     // Pass 2: in the direct search's order, its exact values at the candidates.
     let mut best: Option<(f32, f64, i32, usize)> = None;
     for (cell, dir) in scales() {
-        let k = expand(cell, dir);
-        if k.len() + 1 >= bin.len() {
+        let Some(k) = fast(cell, dir, &mut corr) else {
             continue;
-        }
-        corr.resize(bin.len() - k.len() + 1, 0.0);
-        runs.fill_from(&k);
-        ncc_runs_prefix(&runs, &prefix, &prefix2, &mut corr);
+        };
         let stats = KernelStats::of(&k);
-        for (i, &fast) in corr.iter().enumerate() {
-            if fast * fast < floor {
+        for (i, &f) in corr.iter().enumerate() {
+            if f * f < floor {
                 continue;
             }
             let cv = ncc_direct_at(&k, stats, &bin[i..i + k.len()]);
@@ -103,20 +124,7 @@ mod tests {
     }
 
     fn expand_kernel(kernel: &[bool]) -> impl Fn(f64, i32) -> Vec<f32> + '_ {
-        move |cell, dir| {
-            let len = (kernel.len() as f64 * cell).round() as usize;
-            (0..len)
-                .map(|i| {
-                    let c = (((i as f64 + 0.5) / cell) as usize).min(kernel.len() - 1);
-                    let c = if dir > 0 { c } else { kernel.len() - 1 - c };
-                    if kernel[c] {
-                        1.0
-                    } else {
-                        0.0
-                    }
-                })
-                .collect()
-        }
+        move |cell, dir| barcode_kernel(kernel, cell, dir, 1.0)
     }
 
     /// Binary lines holding the barcode at several scales, both ways, with noise flips and
