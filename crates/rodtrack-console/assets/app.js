@@ -319,7 +319,29 @@ function showStats(m) {
   }
   $('stats').textContent = text;
   $('reanchor').hidden = !m.session;
+  if (m.events) showEvents(m.events);
   rt.stats = m;
+}
+
+// One event as a line of text (the `--events-out` object's fields).
+function eventText(e) {
+  const at = `${e.timestamp_s.toFixed(2)} s`;
+  switch (e.event) {
+    case 'goal': return `${at} goal for ${e.side.toUpperCase()} (${e.score[0]} : ${e.score[1]})`;
+    case 'shot': return `${at} shot ${(e.speed_mm_s / 1000).toFixed(1)} m/s rod ${e.rod === null ? '?' : e.rod}`;
+    case 'ball_out': return `${at} ball out`;
+    case 'ball_stopped': return `${at} ball stopped`;
+    default: return `${at} ${e.event}`;
+  }
+}
+
+// The ball's running score and its last events, newest first.
+function showEvents(ev) {
+  const score = `${ev.score[0]} : ${ev.score[1]}`;
+  if ($('score').textContent !== score) $('score').textContent = score;
+  const html = ev.last.length === 0 ? 'none yet' : ev.last.slice().reverse()
+    .map((e) => `<span class="${e.event}">${eventText(e)}</span>`).join(' · ');
+  if ($('events').innerHTML !== html) $('events').innerHTML = html;
 }
 
 // ------------------------------------------------------------------- calibration

@@ -52,6 +52,8 @@
 //!   copied (zero copy, full resolution; `rodtrack demo` and `rodtrack console --demo` use it,
 //!   and `rodtrack track`, whose frames are the runtime's, through the runtime's frame hook).
 //! - [`ConsoleHandle::publish_rows`]`(&[Measurement])`, [`ConsoleHandle::publish_stats`].
+//! - [`ConsoleHandle::publish_events`]`(&[BallEvent])`: the ball's running score and last
+//!   events (from the session's event sink).
 //! - [`ConsoleHandle::attach_session`]`(Arc<dyn SessionCommands>)`: the running session, for
 //!   the page's re-anchoring of a rod's turn count (see [`control`]).
 //! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions,
@@ -60,6 +62,7 @@
 pub mod calib;
 pub mod control;
 pub mod error;
+mod events;
 mod guard;
 pub mod image;
 pub mod overlay;
@@ -277,6 +280,8 @@ pub(crate) struct Shared {
     pub token: String,
     /// The tracking session's commands ([`ConsoleHandle::attach_session`]).
     pub session: Mutex<control::Attached>,
+    /// The ball's score and last events ([`ConsoleHandle::publish_events`]).
+    pub events: Mutex<events::EventBoard>,
 }
 
 impl Shared {
@@ -389,6 +394,7 @@ impl Console {
             calib: Mutex::new(CalibState::new(calibration.unwrap_or_default())),
             token: guard::new_token(),
             session: Mutex::new(None),
+            events: Mutex::new(events::EventBoard::default()),
         });
         let guard = Arc::new(guard::GuardConfig {
             addr: local,
@@ -603,6 +609,18 @@ impl ConsoleHandle {
         if let Ok(mut s) = self.shared.stats.try_lock() {
             *s = Some(*stats);
         }
+        self.shared.account(t0);
+    }
+
+    /// Shows the ball's events on the page: the running score (from the goals) and the last
+    /// events ([`events::LAST_EVENTS`]). Events are rare and decided off the cameras'
+    /// threads: a plain lock, held by the console only to copy them.
+    pub fn publish_events(&self, events: &[rodtrack_core::ball::events::BallEvent]) {
+        if events.is_empty() {
+            return;
+        }
+        let t0 = Instant::now();
+        server::lock(&self.shared.events).push(events);
         self.shared.account(t0);
     }
 

@@ -3,8 +3,8 @@
 //! | route | what |
 //! |---|---|
 //! | `GET /`, `/app.js`, `/style.css` | the page (embedded, no network) |
-//! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}`; binary frames |
-//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead |
+//! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}` (the status, with the ball's `events`: `score`, `count`, `last`); binary frames |
+//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead, the ball's score and last events (`events`) |
 //! | `GET /api/calib` | calibration state: per camera its inputs, frozen frame, outcomes |
 //! | `POST /api/calib/{cam}/freeze` | freeze the camera's next frame |
 //! | `GET /api/calib/{cam}/frame` | the frozen frame (binary, like the live frames) |
@@ -171,6 +171,7 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         "uptime_s": sh.started.elapsed().as_secs_f64(),
         "clients": sh.clients.load(Ordering::Relaxed),
         "session": lock(&sh.session).is_some(),
+        "events": lock(&sh.events).json(),
     })
 }
 

@@ -7,6 +7,7 @@ use rodtrack_core::ball::events::{
 };
 use rodtrack_core::ball::{BallFuser, BallRow, BallStatus, BallTracker, CameraBall};
 use rodtrack_core::calib::CalibrationFile;
+use rodtrack_core::{Measurement, Status};
 use rodtrack_io::{BallSink, EventSink};
 use std::sync::{Arc, Mutex};
 
@@ -14,6 +15,11 @@ use std::sync::{Arc, Mutex};
 /// of two cameras at 200 fps). A row that comes later than that is written when it comes,
 /// out of frame order, never dropped.
 const MAX_PENDING_ROWS: usize = 400;
+
+/// The most rod angles held for the events until their frame's ball row (as many frames as
+/// [`MAX_PENDING_ROWS`], 8 rods each); more are dropped (the shot's rod then falls back to
+/// the nearest axis).
+const MAX_PENDING_RODS: usize = MAX_PENDING_ROWS * 8;
 
 /// Counts of the ball rows a session wrote.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -51,6 +57,11 @@ struct EventStage {
     buf: Vec<BallEvent>,
     /// The last frame given to the detector (a row that comes later, out of order, is not).
     last_frame: Option<u64>,
+    /// Trusted rod angles `(frame, rod, time, angle_rad)` waiting for their frame's ball row:
+    /// given to the detector in frame order with the ball rows (a camera ahead of the others
+    /// would otherwise push the kick's swing out of the detector's window before the shot
+    /// is decided).
+    pending_rods: Vec<(u64, u32, rodtrack_core::Timestamp, f64)>,
     counts: EventCounts,
     error: Option<String>,
 }
@@ -61,7 +72,26 @@ impl EventStage {
             return;
         }
         self.last_frame = Some(row.frame);
+        for &(frame, rod, t, angle) in &self.pending_rods {
+            if frame <= row.frame {
+                self.det.push_rod_angle(rod, t, angle);
+            }
+        }
+        self.pending_rods.retain(|r| r.0 > row.frame);
         self.det.push(row, &mut self.buf);
+    }
+
+    /// The rods' angles of one camera's frame (trusted rows only), for the shot's rod.
+    fn push_rods(&mut self, rows: &[Measurement]) {
+        for m in rows.iter().filter(|m| m.status == Status::Ok) {
+            if self.last_frame.is_some_and(|f| m.frame <= f) {
+                // Its frame's ball row is gone: now.
+                self.det.push_rod_angle(m.rod, m.timestamp_ns, m.angle_rad);
+            } else if self.pending_rods.len() < MAX_PENDING_RODS {
+                self.pending_rods
+                    .push((m.frame, m.rod, m.timestamp_ns, m.angle_rad));
+            }
+        }
     }
 
     /// Writes the events decided so far (counted), keeping the first error.
@@ -180,6 +210,7 @@ impl BallStage {
             sink,
             buf: Vec::with_capacity(64),
             last_frame: None,
+            pending_rods: Vec::with_capacity(MAX_PENDING_RODS),
             counts: EventCounts::default(),
             error: None,
         });
@@ -254,6 +285,14 @@ impl BallWriter {
         while self.pending.len() > MAX_PENDING_ROWS {
             let oldest = self.pending[0].row.frame;
             self.emit(oldest);
+        }
+    }
+
+    /// Takes a camera's rod rows of a frame: their angles give the events the rods' swings
+    /// (the shot's rod). Nothing without events.
+    pub(crate) fn push_rods(&mut self, rows: &[Measurement]) {
+        if let Some(e) = self.events.as_mut() {
+            e.push_rods(rows);
         }
     }
 

@@ -29,11 +29,13 @@ fn track_events(sim: &Simulation, cal: &CalibrationFile) -> (Vec<BallEvent>, Eve
     (events.events(), report.events.unwrap())
 }
 
-/// Goals within 0.1 s of the truth's crossing, shots and stops within 0.15 s, outs within
-/// 0.1 s (at 200 fps).
+/// Goals within 0.1 s of the truth's crossing, shots within 0.15 s, outs within 0.1 s (at
+/// 200 fps); stops within 24 frames: over the 5 runs of the notes (seeds 7, 3, 11, 12 and 13)
+/// the 15 stops were found 0 to 23 frames after the truth's rest (median 4, 13 within 10; the
+/// former rule, a 5 mm radius, found them up to 28 frames early, within 30).
 const GOAL_TOLERANCE_FRAMES: u64 = 20;
 const SHOT_TOLERANCE_FRAMES: u64 = 30;
-const STOP_TOLERANCE_FRAMES: u64 = 30;
+const STOP_TOLERANCE_FRAMES: u64 = 24;
 const OUT_TOLERANCE_FRAMES: u64 = 20;
 
 #[test]
@@ -47,7 +49,12 @@ fn goals_scenario_every_goal_found_and_the_score_right() {
 #[test]
 #[ignore]
 fn goals_scenario_over_seeds_and_as_built_setups() {
-    for (seed, setup) in [(11, "default"), (12, "asbuilt:12"), (13, "asbuilt:13")] {
+    for (seed, setup) in [
+        (3, "default"),
+        (11, "default"),
+        (12, "asbuilt:12"),
+        (13, "asbuilt:13"),
+    ] {
         eprintln!("seed {seed}, setup {setup}:");
         goals_run(seed, setup);
     }
@@ -84,6 +91,13 @@ fn goals_run(seed: u64, setup: &str) {
             m.truth, m.found, m.missed, m.false_events
         );
     }
+    // The stops' timing: found minus truth, frames.
+    let stop_errors: Vec<i64> = stops
+        .pairs
+        .iter()
+        .map(|&(i, j)| found[j].frame as i64 - truth[i].frame as i64)
+        .collect();
+    eprintln!("ball_stopped timing (found - truth, frames): {stop_errors:?}");
     // The shots' rods and speeds.
     let (rod_right, worst_speed) = shot_agreement(&truth, &found, &shots);
     eprintln!(
@@ -155,4 +169,54 @@ fn the_table_s_rods_come_from_the_calibration() {
         .err()
         .unwrap();
     assert!(err.to_string().contains("with_ball"), "{err}");
+}
+
+/// Scenario `stretch` (the plays of `goals`, every kick at a figure's full stretch: the ball
+/// met 78 mm ahead of the kicking rod's axis, 72 mm from the next rod's, which stays still),
+/// 12 s: every shot found and credited to the rod that swung, though another rod's axis is
+/// nearer the ball (checked on the truth, with the calibrated axes). The nearest axis within
+/// reach, without the rods' swings, credits none of them.
+#[test]
+fn stretch_kicks_are_credited_to_the_rod_that_swung() {
+    let seed = 5;
+    let mut sim = build_simulation("stretch", Some(2400), seed, false, "default").unwrap();
+    let truth = sim.events_truth();
+    let cal = calibrate(&mut sim, seed);
+    let geom = TableGeometry::from_calibration(&cal, &EventConfig::default()).unwrap();
+    let (found, _) = track_events(&sim, &cal);
+    let shots = match_events(&truth, &found, "shot", SHOT_TOLERANCE_FRAMES);
+    let (rod_right, worst_speed) = shot_agreement(&truth, &found, &shots);
+    for &(i, j) in &shots.pairs {
+        eprintln!(
+            "truth {}\nfound {}",
+            truth[i].json_line(),
+            found[j].json_line()
+        );
+    }
+    eprintln!(
+        "stretch: shots truth {}, found {}, false {}, rod right {rod_right}, speed error worst \
+         {:.1} %",
+        shots.truth,
+        shots.found,
+        shots.false_events,
+        100.0 * worst_speed
+    );
+    assert!(shots.truth >= 4, "{shots:?}");
+    for e in &truth {
+        if let rodtrack_core::ball::events::EventKind::Shot {
+            rod: Some(rod),
+            x_mm,
+            ..
+        } = e.kind
+        {
+            let nearest = geom.nearest_rod(x_mm, f64::INFINITY);
+            assert_ne!(
+                nearest,
+                Some(rod),
+                "the case: another axis is nearer, {e:?}"
+            );
+        }
+    }
+    assert_eq!((shots.missed, shots.false_events), (0, 0), "{shots:?}");
+    assert_eq!(rod_right, shots.found, "every shot to the rod that kicked");
 }

@@ -26,8 +26,35 @@ use crate::scenario::{BallPath, Scenario};
 use crate::scene::SceneConfig;
 use rodtrack_core::ball::events::{EventConfig, EventKind, Side};
 
-/// The kick point's distance ahead of the rod's axis, mm.
+/// The kick point's distance ahead of the rod's axis, mm (scenario `goals`).
 const FOOT_AHEAD_MM: f64 = 32.0;
+
+/// How the figures kick: where the ball is met and when the swing starts.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Kicks {
+    /// The ball's centre at the kick, ahead of the kicking rod's axis, mm.
+    pub foot_ahead_mm: f64,
+    /// The forward swing starts this long before the kick, s.
+    pub swing_lead_s: f64,
+}
+
+impl Kicks {
+    /// Scenario `goals`: the ball met 32 mm ahead of the axis, early in the forward swing.
+    pub(crate) const GOALS: Kicks = Kicks {
+        foot_ahead_mm: FOOT_AHEAD_MM,
+        swing_lead_s: 0.02,
+    };
+
+    /// Scenario `stretch`: the ball met at full stretch, its centre 78 mm ahead of the axis
+    /// (a figure's toe about 78 mm below its axis swung forward by 0.8 rad: 56 mm ahead and
+    /// 26 mm above the field, on the ball's upper half, whose centre lies a radius further),
+    /// late in the forward swing (still turning at about 30 rad/s). With rods 150 mm apart the
+    /// next rod's axis is nearer the ball (72 mm) than the kicker's.
+    pub(crate) const STRETCH: Kicks = Kicks {
+        foot_ahead_mm: 78.0,
+        swing_lead_s: 0.03,
+    };
+}
 /// Rolling friction after a bounce, mm/s^2.
 const FRICTION_MM_S2: f64 = 2000.0;
 /// Time step of a rolling ball's keypoints, s.
@@ -128,7 +155,13 @@ enum Play {
 
 /// Fills `s` with the plays up to `end_s`: the ball's path, the kicking rods' swings, the
 /// truth events. Every rod stays at position 0; the figures hang down except in a kick.
-pub(crate) fn script(rng: &mut Rng, scene: &SceneConfig, s: &mut Scenario, end_s: f64) {
+pub(crate) fn script(
+    rng: &mut Rng,
+    scene: &SceneConfig,
+    s: &mut Scenario,
+    end_s: f64,
+    kicks: Kicks,
+) {
     let goal_width_mm = EventConfig::default().goal_width_mm;
     let mut sc = Script {
         scene,
@@ -211,14 +244,14 @@ pub(crate) fn script(rng: &mut Rng, scene: &SceneConfig, s: &mut Scenario, end_s
         } else {
             figs[rng.below(figs.len() as u64) as usize]
         };
-        let foot = [rc.x_mm + dir * FOOT_AHEAD_MM, fy];
+        let foot = [rc.x_mm + dir * kicks.foot_ahead_mm, fy];
         sc.go(foot, rng.range(500.0, 900.0));
         // The kick: back-swing, strike through the ball's moment, back down.
         let t_kick = sc.t;
         let a = &mut angles[rod];
         a.hold((t_kick - 0.1 - a.t_s).max(0.0))
             .move_to(-0.6 * dir, 20.0, 800.0);
-        a.hold((t_kick - 0.02 - a.t_s).max(0.0))
+        a.hold((t_kick - kicks.swing_lead_s - a.t_s).max(0.0))
             .move_to(0.9 * dir, 60.0, 6000.0)
             .hold(0.05)
             .move_to(0.0, 10.0, 200.0);

@@ -140,9 +140,9 @@ pub struct Scenario {
 }
 
 /// Names accepted by [`Scenario::by_name`].
-pub const SCENARIO_NAMES: [&str; 13] = [
+pub const SCENARIO_NAMES: [&str; 14] = [
     "exp1", "exp2", "exp3", "spin600", "spin3000", "lighting", "gameplay", "sweep", "static",
-    "poses", "ball", "hands", "goals",
+    "poses", "ball", "hands", "goals", "stretch",
 ];
 
 impl Scenario {
@@ -330,7 +330,14 @@ impl Scenario {
                 // put back at the centre), a miss bouncing off an end wall to rest, a rebound
                 // out of a goal, a ball leaving the table; the truth events in `events`.
                 end = 24.0;
-                crate::goals::script(&mut rng, scene, &mut s, end);
+                crate::goals::script(&mut rng, scene, &mut s, end, crate::goals::Kicks::GOALS);
+            }
+            "stretch" => {
+                // The plays of `goals`, each kick at a figure's full stretch: the ball met
+                // 78 mm ahead of the kicking rod's axis, nearer the next rod's (72 mm), which
+                // stays still; for crediting the shot to the rod that swung.
+                end = 24.0;
+                crate::goals::script(&mut rng, scene, &mut s, end, crate::goals::Kicks::STRETCH);
             }
             "hands" => {
                 // Hands and moving figures, no ball: for false detections.

@@ -149,3 +149,20 @@ impl Hooks for LiveHooks {
         self.0.publish_progress(p);
     }
 }
+
+/// The session's ball events to the web console too: the page shows the running score and
+/// the last events.
+pub struct ConsoleEvents(pub Arc<ConsoleHandle>);
+
+impl rodtrack_io::EventSink for ConsoleEvents {
+    fn write(
+        &mut self,
+        events: &[rodtrack_core::ball::events::BallEvent],
+    ) -> Result<(), rodtrack_io::IoError> {
+        self.0.publish_events(events);
+        Ok(())
+    }
+    fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
+        Ok(())
+    }
+}

@@ -23,9 +23,10 @@ pub struct Args {
     /// The events found (`track --events-out`), scored against --events-truth.
     #[arg(long, requires = "events_truth")]
     pub events: Option<PathBuf>,
-    /// Events within this many frames of the truth's are the same event (0.15 s at 200 fps:
-    /// a ball slowing to rest is within the stop's 5 mm some frames before it rests).
-    #[arg(long, default_value_t = 30)]
+    /// Events within this many frames of the truth's are the same event (0.12 s at 200 fps:
+    /// goals, shots and outs are found within a frame of the truth's, stops 0 to 23 frames
+    /// late in the simulator's `goals` runs; docs/ball.md).
+    #[arg(long, default_value_t = 24)]
     pub events_tolerance_frames: u64,
     /// Write the table as JSON here too.
     #[arg(long)]

@@ -34,7 +34,8 @@ pub struct Args {
     /// Output format; by default from the file extension (`.jsonl` is JSON Lines, else CSV).
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
-    /// Also stream every frame set over UDP to this address (e.g. 127.0.0.1:9870).
+    /// Also stream every frame set over UDP to this address (e.g. 127.0.0.1:9870); with
+    /// --events-out, the ball's events too, in datagrams of their own (docs/formats.md).
     #[arg(long)]
     pub udp: Option<String>,
     /// Algorithm: `enhanced` (default) or `paper` (the published method, as a baseline).
@@ -43,7 +44,8 @@ pub struct Args {
     /// Write each camera's raw measurements, without the temporal filter and fusion.
     #[arg(long)]
     pub raw: bool,
-    /// Also serve the web console at this address (e.g. 127.0.0.1:8620): live view and plots.
+    /// Also serve the web console at this address (e.g. 127.0.0.1:8620): live view and plots;
+    /// with --events-out, the ball's running score and last events.
     #[arg(long)]
     pub console: Option<std::net::SocketAddr>,
     /// Stop after this many frames per camera.
@@ -274,8 +276,19 @@ pub fn run(args: Args) -> Result<()> {
         if args.ball_out.is_none() {
             session = session.with_ball(&cal, Box::new(NoBallRows))?;
         }
-        let sink = rodtrack_io::EventJsonlSink::create(path)
+        let file = rodtrack_io::EventJsonlSink::create(path)
             .with_context(|| format!("creating the events output {}", path.display()))?;
+        let mut sink = rodtrack_io::EventMultiSink::new();
+        sink.push(Box::new(file));
+        // With --udp the events go to the stream too, as datagrams of their own (`RTEV`).
+        if let Some(udp) = args.udp.as_deref() {
+            sink.push(Box::new(
+                rodtrack_io::UdpEventSink::new(udp).context("opening the UDP stream's events")?,
+            ));
+        }
+        if let Some(c) = &console {
+            sink.push(Box::new(crate::console_hooks::ConsoleEvents(c.clone())));
+        }
         session = session
             .with_events(&cal, events_config, Box::new(sink))
             .with_context(|| format!("detecting the events for {}", path.display()))?;

@@ -1,6 +1,7 @@
 //! `track --events-out` from the command line: scenario `goals` simulated (its calibration
 //! inputs and truth events), both cameras calibrated, the first second tracked from `sim://`
-//! sources; the events file against the truth's, `score --events-truth`; bad arguments.
+//! sources; the events file against the truth's, the same events in the UDP stream, `score
+//! --events-truth`; bad arguments.
 #![allow(missing_docs, clippy::unwrap_used)]
 
 mod common;
@@ -41,6 +42,33 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
     let events = dir.join("events.jsonl");
     let rows = dir.join("rows.csv");
     let ball = dir.join("ball.jsonl");
+    // The UDP stream: rows' datagrams (`RTRK`) and the events' (`RTEV`), read as they come.
+    let rx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    rx.set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let udp = rx.local_addr().unwrap().to_string();
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let receiver = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let (mut rows, mut packets) = (0usize, Vec::new());
+            let mut buf = vec![0u8; 65_536];
+            loop {
+                match rx.recv(&mut buf) {
+                    Ok(n) if buf[..4] == *b"RTEV" => {
+                        packets.push(rodtrack_io::decode_udp_events(&buf[..n]).unwrap())
+                    }
+                    Ok(n) => {
+                        rodtrack_io::decode_udp_packet(&buf[..n]).unwrap();
+                        rows += 1;
+                    }
+                    Err(_) if done.load(std::sync::atomic::Ordering::Relaxed) => break,
+                    Err(_) => {}
+                }
+            }
+            (rows, packets)
+        })
+    };
     let o = rodtrack(&[
         "track",
         "--calib",
@@ -55,7 +83,11 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         events.to_str().unwrap(),
         "--ball-out",
         ball.to_str().unwrap(),
+        "--udp",
+        &udp,
     ]);
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (udp_rows, udp_events) = receiver.join().unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("1 goal(s), score 1:0"), "{stdout}");
@@ -91,6 +123,17 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         .any(|v| v["camera"] == 1 && v["status"] == "ok"));
     let truth = rodtrack_io::read_events_jsonl(&rec.join("events_truth.jsonl")).unwrap();
     let found = rodtrack_io::read_events_jsonl(&events).unwrap();
+    // The same events in the UDP stream, beside the rows, with the running score.
+    assert!(udp_rows >= 200, "row datagrams: {udp_rows}");
+    let streamed: Vec<_> = udp_events.iter().flat_map(|p| p.events.clone()).collect();
+    assert_eq!(streamed.len(), found.len(), "{udp_events:?}");
+    for (u, f) in streamed.iter().zip(&found) {
+        assert_eq!(
+            (u.frame, u.timestamp_ns, u.kind.name()),
+            (f.frame, f.timestamp_ns, f.kind.name())
+        );
+    }
+    assert_eq!(udp_events.last().map(|p| p.score), Some([1, 0]));
     let early: Vec<_> = truth.iter().filter(|e| e.frame < 200).collect();
     // The first play: a shot by rod 3, a goal for side A at the crossing's frame.
     assert_eq!(early.len(), 2, "{early:?}");

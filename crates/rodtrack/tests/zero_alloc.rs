@@ -142,6 +142,10 @@ fn per_frame_processing_allocates_nothing() {
                     events.push(&row, &mut decided);
                 }
             }
+            // The rods' angles for the shot's rod, as the session gives them.
+            for m in raw.iter().filter(|m| m.status == rodtrack_core::Status::Ok) {
+                events.push_rod_angle(m.rod, m.timestamp_ns, m.angle_rad);
+            }
             filter.process(&raw, &mut filtered);
             ok_rows += raw
                 .iter()

@@ -11,6 +11,7 @@ mod csv;
 mod events;
 mod jsonl;
 mod udp;
+mod udp_events;
 
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
 pub use ball::{BallCsvSink, BallJsonlSink, BallSink, BallVecSink};
@@ -20,6 +21,10 @@ pub use udp::{
     decode_udp_packet, encode_udp_packet, push_row_motion, status_code, status_from_code,
     UdpPacket, UdpSink, UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_FLAG_TURNS_KNOWN, UDP_HEADER_BYTES,
     UDP_MAGIC, UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
+};
+pub use udp_events::{
+    decode_udp_events, encode_udp_events, EventMultiSink, UdpEventPacket, UdpEventSink,
+    UDP_EVENTS_HEADER_BYTES, UDP_EVENTS_MAGIC, UDP_EVENTS_VERSION, UDP_EVENT_BYTES, UDP_MAX_EVENTS,
 };
 
 use crate::IoError;

@@ -142,6 +142,11 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                         .map_err(|e| e.to_string()),
                     Err(e) => Err(e.to_string()),
                 };
+                if let (Ok(()), Some((_, writer))) = (&result, ball_cam.as_ref()) {
+                    if let Ok(mut w) = writer.lock() {
+                        w.push_rods(rows);
+                    }
+                }
                 match result {
                     Ok(()) => {
                         let d = start.elapsed();

@@ -42,18 +42,27 @@ pub struct EventConfig {
     pub shot_min_rows: u32,
     /// No second shot within this time of one, s.
     pub shot_refractory_s: f64,
-    /// A rod is credited with a shot when its axis is within this distance (along `x`) of
-    /// the ball, mm.
+    /// A rod not seen swinging is credited with a shot when its axis is the nearest to the
+    /// ball and within this distance (along `x`), mm.
     pub rod_reach_mm: f64,
+    /// A rod seen swinging at the kick is credited with it when its axis is within this
+    /// distance of the ball (along `x`), mm: a figure's foot swung forward to its full
+    /// stretch (a toe about the axes' height below the axis, 0.8 rad forward: 56 mm) plus
+    /// the ball's radius. Default 85.
+    pub rod_swing_reach_mm: f64,
     /// A ball seen this far beyond the field's edge (outside a goal mouth) is out, mm.
     pub out_margin_mm: f64,
     /// A ball last seen within this distance of the field's edge ...
     pub out_edge_mm: f64,
     /// ... and not seen again for this long is out, s.
     pub out_lost_s: f64,
-    /// A ball staying within this distance ...
-    pub stopped_radius_mm: f64,
-    /// ... for this long has stopped, s.
+    /// The ball's speed for the stop is fitted over the `ok` rows younger than this, s (the
+    /// positions' noise is measured over the same rows).
+    pub stopped_window_s: f64,
+    /// The ball is still when its fitted speed is within this many of the speed's standard
+    /// errors of zero (from the measured noise); it moves again beyond three times that.
+    pub stopped_sigmas: f64,
+    /// Still for this long (the windows' times) has stopped, s.
     pub stopped_min_s: f64,
 }
 
@@ -75,10 +84,12 @@ impl Default for EventConfig {
             shot_min_rows: 2,
             shot_refractory_s: 0.2,
             rod_reach_mm: 60.0,
+            rod_swing_reach_mm: 85.0,
             out_margin_mm: 35.0,
             out_edge_mm: 60.0,
             out_lost_s: 1.0,
-            stopped_radius_mm: 5.0,
+            stopped_window_s: 0.06,
+            stopped_sigmas: 3.0,
             stopped_min_s: 0.5,
         }
     }
@@ -103,10 +114,12 @@ impl EventConfig {
             ("shot_settle_s", self.shot_settle_s, true),
             ("shot_refractory_s", self.shot_refractory_s, true),
             ("rod_reach_mm", self.rod_reach_mm, true),
+            ("rod_swing_reach_mm", self.rod_swing_reach_mm, true),
             ("out_margin_mm", self.out_margin_mm, true),
             ("out_edge_mm", self.out_edge_mm, true),
             ("out_lost_s", self.out_lost_s, false),
-            ("stopped_radius_mm", self.stopped_radius_mm, false),
+            ("stopped_window_s", self.stopped_window_s, false),
+            ("stopped_sigmas", self.stopped_sigmas, false),
             ("stopped_min_s", self.stopped_min_s, false),
         ];
         for (field, v, zero_ok) in fields {

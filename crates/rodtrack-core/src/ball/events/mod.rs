@@ -18,18 +18,26 @@
 //!   bounce, which only slows the ball, is no shot. At least [`EventConfig::shot_min_rows`]
 //!   `ok` rows within [`EventConfig::shot_settle_s`] of the jump are that fast; the speed is
 //!   the mean of the rows after the jump's within that time (the filter's velocity restarts
-//!   at the jump from the positions before and after the kick); the rod is the one whose axis is nearest the
-//!   ball's last slow position, when within [`EventConfig::rod_reach_mm`].
+//!   at the jump from the positions before and after the kick); the rod is the one that swung
+//!   at the kick within [`EventConfig::rod_swing_reach_mm`] of the ball's last slow position
+//!   (the fastest, from the angles given to [`EventDetector::push_rod_angle`]), else the one
+//!   whose axis is nearest that position, when within [`EventConfig::rod_reach_mm`] (module
+//!   `kicker`).
 //! - **ball_out**: an `ok` row more than [`EventConfig::out_margin_mm`] beyond the field's
 //!   edge (not within a goal mouth), or the last `ok` row within [`EventConfig::out_edge_mm`]
 //!   of the field's edge followed by no `ok` row for [`EventConfig::out_lost_s`] (no goal
 //!   pending). Frame: the last row that saw it.
-//! - **ball_stopped**: `ok` rows staying within [`EventConfig::stopped_radius_mm`] of the
-//!   first of them for [`EventConfig::stopped_min_s`]. Frame: the first.
+//! - **ball_stopped**: the ball's speed, fitted over the `ok` rows of a short window
+//!   ([`EventConfig::stopped_window_s`]), within [`EventConfig::stopped_sigmas`] standard
+//!   errors of zero (the positions' noise measured from the same rows) for
+//!   [`EventConfig::stopped_min_s`] (module `stop`). Frame: the first still window's mean
+//!   time's row.
 
 mod config;
 mod geometry;
+mod kicker;
 mod score;
+mod stop;
 #[cfg(test)]
 mod tests;
 
@@ -247,7 +255,6 @@ struct PendingShot {
     later: u32,
     /// `ok` rows within the settle time still faster than `before_mm_s` by the least jump.
     fast_rows: u32,
-    rod: Option<u32>,
 }
 
 /// The event rules over a sequence of ball rows (see the module's documentation).
@@ -278,14 +285,14 @@ pub struct EventDetector {
     /// The last `ok` row.
     last_seen: Option<Sample>,
     out_reported: bool,
-    anchor: Option<Sample>,
-    stopped_reported: bool,
+    stop: stop::StopRule,
     history: [Sample; HISTORY],
     history_len: usize,
     history_next: usize,
     pending_shot: Option<PendingShot>,
     last_shot: Option<Timestamp>,
     last_time: Option<(u64, Timestamp)>,
+    swings: kicker::RodSwings,
 }
 
 impl EventDetector {
@@ -295,21 +302,21 @@ impl EventDetector {
         geom.validate()?;
         Ok(EventDetector {
             cfg,
-            geom,
             score: [0, 0],
             armed: true,
             prev: None,
             pending_goal: None,
             last_seen: None,
             out_reported: false,
-            anchor: None,
-            stopped_reported: false,
+            stop: stop::StopRule::new(),
             history: [Sample::default(); HISTORY],
             history_len: 0,
             history_next: 0,
             pending_shot: None,
             last_shot: None,
             last_time: None,
+            swings: kicker::RodSwings::new(&geom),
+            geom,
         })
     }
 
@@ -368,7 +375,9 @@ impl EventDetector {
         };
         self.out_rule(seen.then_some(sample), t, out);
         if seen {
-            self.stopped_rule(sample, out);
+            if let Some(e) = self.stop.push(&self.cfg, sample) {
+                out.push(e);
+            }
             self.shot_rule(sample, out);
             self.last_seen = Some(sample);
         } else if let Some(s) = self.pending_shot {
@@ -376,6 +385,14 @@ impl EventDetector {
                 self.emit_shot(out);
             }
         }
+    }
+
+    /// Rod `rod`'s measured angle (calibration index, `angle_rad` as in its rows) at `t`, for
+    /// the shot's rod: give every rod's angle of each frame, from any camera (a second angle
+    /// at the same time is ignored), before or after that frame's ball row. Only angles of
+    /// trusted rows should be given. No allocation.
+    pub fn push_rod_angle(&mut self, rod: u32, t: Timestamp, angle_rad: f64) {
+        self.swings.push(rod, t, angle_rad);
     }
 
     /// Decides what is still open at the end of the rows: a goal whose grace time has not
@@ -432,7 +449,7 @@ impl EventDetector {
         self.armed = false;
         // The ball in a goal is neither out nor resting.
         self.out_reported = true;
-        self.anchor = None;
+        self.stop.clear();
         out.push(BallEvent {
             frame: p.frame,
             timestamp_ns: p.t,
@@ -478,7 +495,7 @@ impl EventDetector {
         }
         if -self.geom.distance_beyond_edge_mm(last.x_mm, last.y_mm) <= self.cfg.out_edge_mm {
             self.out_reported = true;
-            self.anchor = None;
+            self.stop.clear();
             out.push(BallEvent {
                 frame: last.frame,
                 timestamp_ns: last.t,
@@ -487,30 +504,6 @@ impl EventDetector {
                     y_mm: last.y_mm,
                 },
             });
-        }
-    }
-
-    fn stopped_rule(&mut self, s: Sample, out: &mut Vec<BallEvent>) {
-        let moved = self
-            .anchor
-            .is_none_or(|a| (s.x_mm - a.x_mm).hypot(s.y_mm - a.y_mm) > self.cfg.stopped_radius_mm);
-        if moved {
-            self.anchor = Some(s);
-            self.stopped_reported = false;
-            return;
-        }
-        if let Some(a) = self.anchor {
-            if !self.stopped_reported && s.t.seconds_since(a.t) >= self.cfg.stopped_min_s {
-                self.stopped_reported = true;
-                out.push(BallEvent {
-                    frame: a.frame,
-                    timestamp_ns: a.t,
-                    kind: EventKind::BallStopped {
-                        x_mm: a.x_mm,
-                        y_mm: a.y_mm,
-                    },
-                });
-            }
         }
     }
 
@@ -554,7 +547,6 @@ impl EventDetector {
                     later_sum_mm_s: 0.0,
                     later: 0,
                     fast_rows: 1,
-                    rod: self.geom.nearest_rod(start.x_mm, self.cfg.rod_reach_mm),
                 });
             }
         }
@@ -571,16 +563,24 @@ impl EventDetector {
             .filter(|p| p.fast_rows >= self.cfg.shot_min_rows)
         {
             self.last_shot = Some(p.jump);
+            let speed_mm_s = if p.later > 0 {
+                p.later_sum_mm_s / f64::from(p.later)
+            } else {
+                p.first_mm_s
+            };
+            let rod = self.swings.kicker(
+                &self.geom,
+                &self.cfg,
+                p.start.x_mm,
+                speed_mm_s,
+                (p.start.t, p.jump),
+            );
             out.push(BallEvent {
                 frame: p.start.frame,
                 timestamp_ns: p.start.t,
                 kind: EventKind::Shot {
-                    speed_mm_s: if p.later > 0 {
-                        p.later_sum_mm_s / f64::from(p.later)
-                    } else {
-                        p.first_mm_s
-                    },
-                    rod: p.rod,
+                    speed_mm_s,
+                    rod,
                     x_mm: p.start.x_mm,
                     y_mm: p.start.y_mm,
                 },
