@@ -26,9 +26,5 @@ echo "== genicam: tests (fake GigE cameras on loopback)"
 # own deadlines; `timeout` is the last resort.
 timeout 600 cargo test --release -p rodtrack-genicam --features genicam -- --test-threads=1 --nocapture
 
-# Under .ci/run the build above was linted by clippy's driver (the compiler wrapper, -D warnings);
-# started by hand, lint here.
-if [[ "${RUSTC_WORKSPACE_WRAPPER:-}" != *clippy-driver ]]; then
-  echo "== genicam: clippy"
-  cargo clippy -p rodtrack-genicam --features genicam --all-targets --no-deps -- -D warnings
-fi
+echo "== genicam: clippy"
+cargo clippy -p rodtrack-genicam --features genicam --all-targets --no-deps -- -D warnings

@@ -20,12 +20,8 @@ fi
 echo "== video: tests"
 cargo test --release -p rodtrack-video --features video
 
-# Under .ci/run the build above was linted by clippy's driver (the compiler wrapper, -D warnings);
-# started by hand, lint here.
-if [[ "${RUSTC_WORKSPACE_WRAPPER:-}" != *clippy-driver ]]; then
-  echo "== video: clippy"
-  cargo clippy -p rodtrack-video --features video --all-targets --no-deps -- -D warnings
-fi
+echo "== video: clippy"
+cargo clippy -p rodtrack-video --features video --all-targets --no-deps -- -D warnings
 
 echo "== video: decode speed (1440x1080)"
 cargo run --release -p rodtrack-video --features video --example decode_speed -- 60

@@ -13,12 +13,8 @@ cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
 features=rodtrack/video,rodtrack/genicam,rodtrack/zenoh
 
-# Under .ci/run the builds below are linted by clippy's driver (the compiler wrapper, -D warnings):
-# the library, the binary and the network tests with every feature. Started by hand, lint here.
-if [[ "${RUSTC_WORKSPACE_WRAPPER:-}" != *clippy-driver ]]; then
-  echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
-  cargo clippy -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
-fi
+echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
+cargo clippy -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
 
 echo "== zenoh: unit tests, the three-process network test and the replay (loopback)"
 timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
