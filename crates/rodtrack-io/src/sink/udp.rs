@@ -227,6 +227,27 @@ pub fn decode_udp_packet(b: &[u8]) -> Result<UdpPacket, IoError> {
     })
 }
 
+/// A UDP socket on an ephemeral local port of `target`'s address family, and `target`
+/// (`host:port`) resolved: what the row and the event senders send from and to.
+pub(crate) fn udp_socket_to(target: &str) -> Result<(UdpSocket, SocketAddr), IoError> {
+    let net = |e| IoError::Net {
+        addr: target.to_string(),
+        source: e,
+    };
+    let addr = target
+        .to_socket_addrs()
+        .map_err(net)?
+        .next()
+        .ok_or_else(|| net(std::io::Error::other("address resolves to nothing")))?;
+    let local: SocketAddr = if addr.is_ipv4() {
+        SocketAddr::from(([0, 0, 0, 0], 0))
+    } else {
+        SocketAddr::from(([0u16; 8], 0))
+    };
+    let socket = UdpSocket::bind(local).map_err(net)?;
+    Ok((socket, addr))
+}
+
 /// Sends one datagram per `write` call (per frame id within it) to a UDP address (default
 /// [`UDP_DEFAULT_ADDR`]).
 ///
@@ -243,21 +264,7 @@ pub struct UdpSink {
 impl UdpSink {
     /// Sends to `target` (`host:port`) from an ephemeral local port.
     pub fn new(target: &str) -> Result<Self, IoError> {
-        let net = |e| IoError::Net {
-            addr: target.to_string(),
-            source: e,
-        };
-        let addr = target
-            .to_socket_addrs()
-            .map_err(net)?
-            .next()
-            .ok_or_else(|| net(std::io::Error::other("address resolves to nothing")))?;
-        let local: SocketAddr = if addr.is_ipv4() {
-            SocketAddr::from(([0, 0, 0, 0], 0))
-        } else {
-            SocketAddr::from(([0u16; 8], 0))
-        };
-        let socket = UdpSocket::bind(local).map_err(net)?;
+        let (socket, addr) = udp_socket_to(target)?;
         Ok(UdpSink {
             socket,
             target: addr,

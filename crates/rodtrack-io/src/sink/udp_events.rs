@@ -38,7 +38,7 @@ use super::events::EventSink;
 use crate::IoError;
 use rodtrack_core::ball::events::{BallEvent, EventKind, Side};
 use rodtrack_core::Timestamp;
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::net::{SocketAddr, UdpSocket};
 
 /// The events datagram's magic.
 pub const UDP_EVENTS_MAGIC: [u8; 4] = *b"RTEV";
@@ -237,21 +237,7 @@ pub struct UdpEventSink {
 impl UdpEventSink {
     /// Sends to `target` (`host:port`) from an ephemeral local port.
     pub fn new(target: &str) -> Result<Self, IoError> {
-        let net = |e| IoError::Net {
-            addr: target.to_string(),
-            source: e,
-        };
-        let addr = target
-            .to_socket_addrs()
-            .map_err(net)?
-            .next()
-            .ok_or_else(|| net(std::io::Error::other("address resolves to nothing")))?;
-        let local: SocketAddr = if addr.is_ipv4() {
-            SocketAddr::from(([0, 0, 0, 0], 0))
-        } else {
-            SocketAddr::from(([0u16; 8], 0))
-        };
-        let socket = UdpSocket::bind(local).map_err(net)?;
+        let (socket, addr) = super::udp::udp_socket_to(target)?;
         Ok(UdpEventSink {
             socket,
             target: addr,
