@@ -613,7 +613,7 @@ impl ConsoleHandle {
     }
 
     /// Shows the ball's events on the page: the running score (from the goals) and the last
-    /// events ([`events::LAST_EVENTS`]). Events are rare and decided off the cameras'
+    /// events (the last 8). Events are rare and decided off the cameras'
     /// threads: a plain lock, held by the console only to copy them.
     pub fn publish_events(&self, events: &[rodtrack_core::ball::events::BallEvent]) {
         if events.is_empty() {
