@@ -8,7 +8,7 @@
 use rodtrack_core::ball::events::{BallEvent, EventKind};
 
 /// The last events kept for the page.
-pub const LAST_EVENTS: usize = 8;
+pub(crate) const LAST_EVENTS: usize = 8;
 
 /// The score and the last events.
 #[derive(Debug, Clone, Default)]

@@ -8,8 +8,6 @@
 //! (`float64` elements 8-byte aligned, no padding when the sequence is empty). Nothing is
 //! padded after the last field.
 
-use std::fmt;
-
 /// The joint states' schema name (ROS 2's `sensor_msgs/msg/JointState`).
 pub const JOINT_STATE_SCHEMA_NAME: &str = "sensor_msgs/msg/JointState";
 
@@ -129,29 +127,18 @@ impl JointState {
 }
 
 /// Why CDR bytes are not a joint state.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum CdrError {
     /// The bytes end before the field at this offset (after the header).
+    #[error("the CDR message ends early (field at byte {0})")]
     Short(usize),
     /// Not a plain CDR encapsulation (its first two bytes).
+    #[error("not a plain CDR message (encapsulation {0:02x?})")]
     Encapsulation([u8; 2]),
     /// A string that is not NUL-terminated UTF-8, at this offset.
+    #[error("a CDR string at byte {0} is not valid")]
     BadString(usize),
 }
-
-impl fmt::Display for CdrError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            CdrError::Short(at) => write!(f, "the CDR message ends early (field at byte {at})"),
-            CdrError::Encapsulation(b) => {
-                write!(f, "not a plain CDR message (encapsulation {b:02x?})")
-            }
-            CdrError::BadString(at) => write!(f, "a CDR string at byte {at} is not valid"),
-        }
-    }
-}
-
-impl std::error::Error for CdrError {}
 
 /// Appends CDR fields after the 4-byte header (alignment counts from there).
 struct CdrWriter<'a> {

@@ -93,27 +93,25 @@ impl MultiSink {
 
 impl MeasurementSink for MultiSink {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for s in &mut self.sinks {
-            if let Err(e) = s.write(rows) {
-                if first.is_ok() {
-                    first = Err(e);
-                }
-            }
-        }
-        first
+        first_error(self.sinks.iter_mut().map(|s| s.write(rows)))
     }
     fn flush(&mut self) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for s in &mut self.sinks {
-            if let Err(e) = s.flush() {
-                if first.is_ok() {
-                    first = Err(e);
-                }
-            }
-        }
-        first
+        first_error(self.sinks.iter_mut().map(|s| s.flush()))
     }
+}
+
+/// Runs every one of `results` (all of them, even after an error) and returns the first
+/// error: what a sink writing to several others returns.
+pub(crate) fn first_error(
+    results: impl Iterator<Item = Result<(), IoError>>,
+) -> Result<(), IoError> {
+    let mut first = Ok(());
+    for r in results {
+        if first.is_ok() {
+            first = r;
+        }
+    }
+    first
 }
 
 /// Decimal places written per column (CSV and JSON Lines).

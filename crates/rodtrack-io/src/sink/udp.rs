@@ -157,7 +157,8 @@ pub fn encode_udp_packet(seq: u32, rows: &[Measurement], out: &mut Vec<u8>) -> R
     Ok(())
 }
 
-fn le<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
+/// `N` bytes of `b` at `at` (the caller checked the length).
+pub(super) fn le<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
     let mut a = [0u8; N];
     a.copy_from_slice(&b[at..at + N]);
     a

@@ -35,6 +35,8 @@
 //! | 44 | 4 | reserved, 0 |
 
 use super::events::EventSink;
+use super::first_error;
+use super::udp::le;
 use crate::IoError;
 use rodtrack_core::ball::events::{BallEvent, EventKind, Side};
 use rodtrack_core::Timestamp;
@@ -153,12 +155,6 @@ pub fn encode_udp_events(
     Ok(())
 }
 
-fn le<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
-    let mut a = [0u8; N];
-    a.copy_from_slice(&b[at..at + N]);
-    a
-}
-
 /// Decodes an events datagram written by [`encode_udp_events`].
 pub fn decode_udp_events(b: &[u8]) -> Result<UdpEventPacket, IoError> {
     if b.len() < UDP_EVENTS_HEADER_BYTES {
@@ -250,8 +246,7 @@ impl UdpEventSink {
 
 impl EventSink for UdpEventSink {
     fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for chunk in events.chunks(UDP_MAX_EVENTS) {
+        first_error(events.chunks(UDP_MAX_EVENTS).map(|chunk| {
             for e in chunk {
                 if let EventKind::Goal { score, .. } = e.kind {
                     self.score = score;
@@ -268,11 +263,8 @@ impl EventSink for UdpEventSink {
                         })
                 });
             self.seq = self.seq.wrapping_add(1);
-            if first.is_ok() {
-                first = sent;
-            }
-        }
-        first
+            sent
+        }))
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())
@@ -300,24 +292,10 @@ impl EventMultiSink {
 
 impl EventSink for EventMultiSink {
     fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for s in &mut self.sinks {
-            let r = s.write(events);
-            if first.is_ok() {
-                first = r;
-            }
-        }
-        first
+        first_error(self.sinks.iter_mut().map(|s| s.write(events)))
     }
     fn flush(&mut self) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for s in &mut self.sinks {
-            let r = s.flush();
-            if first.is_ok() {
-                first = r;
-            }
-        }
-        first
+        first_error(self.sinks.iter_mut().map(|s| s.flush()))
     }
 }
 
