@@ -14,12 +14,8 @@ export DEBIAN_FRONTEND=noninteractive
 export CARGO_TERM_COLOR=never
 
 echo "== console: chromium"
-if command -v chromium >/dev/null 2>&1; then
-    echo "already installed: $(chromium --version 2>/dev/null || echo chromium)"
-else
-    apt-get update -y -qq
-    apt-get install -y -qq chromium >/dev/null
-fi
+source .ci/packages.sh
+chromium_install
 
 echo "== console: tests (browser required)"
 RODTRACK_REQUIRE_BROWSER=1 cargo test --release -p rodtrack-console -- --test-threads 1

@@ -12,14 +12,8 @@ export CARGO_TERM_COLOR=never
 export RODTRACK_REQUIRE_GENICAM=1
 
 echo "== genicam: system packages"
-# libaravis-dev lacks its dependency on libusb-1.0-0-dev (pkg-config fails without it).
-pkgs=(libaravis-dev libusb-1.0-0-dev aravis-tools aravis-tools-cli pkg-config iproute2)
-if dpkg -s "${pkgs[@]}" >/dev/null 2>&1; then
-    echo "already installed"
-else
-    apt-get update -y -qq
-    apt-get install -y -qq --no-install-recommends "${pkgs[@]}" >/dev/null
-fi
+source .ci/packages.sh
+apt_install "${genicam_pkgs[@]}"
 
 echo "== genicam: tests (fake GigE cameras on loopback)"
 # One test at a time: the fake cameras listen on fixed addresses. Bounded: each test has its
@@ -27,4 +21,5 @@ echo "== genicam: tests (fake GigE cameras on loopback)"
 timeout 600 cargo test --release -p rodtrack-genicam --features genicam -- --test-threads=1 --nocapture
 
 echo "== genicam: clippy"
-cargo clippy -p rodtrack-genicam --features genicam --all-targets --no-deps -- -D warnings
+# Release profile, after the release build above (build scripts and proc macros reused).
+cargo clippy --release -p rodtrack-genicam --features genicam --all-targets --no-deps -- -D warnings

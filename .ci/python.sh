@@ -14,23 +14,23 @@ step() { echo; echo "-- python: $* ($(( $(date +%s) - start )) s)"; }
 target="${CARGO_TARGET_DIR:-$PWD/target}"
 
 step "venv with maturin, pytest, numpy"
+source .ci/packages.sh
 venv="$target/ci-python-venv"
-rm -rf "$venv"
-python3 -m venv "$venv"
 # rosbags: an independent reader of ROS 2 bags (the ROS 2 bag check below).
-"$venv/bin/pip" install -q --disable-pip-version-check maturin pytest numpy rosbags
+venv_install "$venv" "${python_venv_pkgs[@]}"
 # PyO3 builds for the venv's interpreter; maturin and pip are the venv's.
 export PATH="$venv/bin:$PATH"
 export PYO3_PYTHON="$venv/bin/python"
-
-step "clippy (rodtrack-py with the feature python, all targets, -D warnings)"
-cargo clippy -p rodtrack-py --features python --all-targets -- -D warnings
 
 step "the abi3 wheel (release, target/wheels)"
 rm -rf "$target/wheels"
 maturin build --release --manifest-path python/Cargo.toml --out "$target/wheels"
 wheel=$(ls "$target"/wheels/rodtrack-*-abi3-*.whl)
 echo "$wheel"
+
+# Release profile, after the wheel's release build (build scripts and proc macros reused).
+step "clippy (rodtrack-py with the feature python, all targets, -D warnings)"
+cargo clippy --release -p rodtrack-py --features python --all-targets -- -D warnings
 
 step "pip install ./python (from source)"
 pip install -q --disable-pip-version-check ./python

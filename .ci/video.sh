@@ -8,20 +8,16 @@ export DEBIAN_FRONTEND=noninteractive
 export CARGO_TERM_COLOR=never
 
 echo "== video: system packages"
-pkgs=(ffmpeg libavcodec-dev libavformat-dev libavutil-dev libswscale-dev libavfilter-dev
-      libavdevice-dev libswresample-dev clang libclang-dev pkg-config)
-if dpkg -s "${pkgs[@]}" >/dev/null 2>&1; then
-    echo "already installed"
-else
-    apt-get update -y -qq
-    apt-get install -y -qq --no-install-recommends "${pkgs[@]}" >/dev/null
-fi
+source .ci/packages.sh
+apt_install "${video_pkgs[@]}"
 
 echo "== video: tests"
 cargo test --release -p rodtrack-video --features video
 
 echo "== video: clippy"
-cargo clippy -p rodtrack-video --features video --all-targets --no-deps -- -D warnings
+# Release profile, after the release build above: the FFmpeg bindings' build script (bindgen)
+# and the proc macros are reused, only the crates are checked again.
+cargo clippy --release -p rodtrack-video --features video --all-targets --no-deps -- -D warnings
 
 echo "== video: decode speed (1440x1080)"
 cargo run --release -p rodtrack-video --features video --example decode_speed -- 60

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The camera network (feature `zenoh`) and the binary with every optional feature: lints the
-# binary and rodtrack-zenoh with `video`, `genicam` and `zenoh` on (one feature set, built
-# once), runs rodtrack-zenoh's unit tests and the network test: real `rodtrack` processes on
-# loopback (two camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
+# The camera network (feature `zenoh`) and the binary with every optional feature: runs
+# rodtrack-zenoh's unit tests and the network test (real `rodtrack` processes on loopback: two
+# camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
 # endpoints, multicast scouting off; a camera node killed and restarted), bounded in time; an
-# MCAP recording replayed on the network (`replay`); the Python subscriber example against a
+# MCAP recording replayed on the network (`replay`); lints the binary and rodtrack-zenoh with
+# `video`, `genicam` and `zenoh` on (one feature set, built once); the Python subscriber example against a
 # fusion node and a camera node (.ci/zenoh_python.sh, eclipse-zenoh in a venv).
 # Runs after .ci/video.sh and .ci/genicam.sh (their system packages are installed).
 # Non-interactive, run as root (CI).
@@ -13,12 +13,14 @@ cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
 features=rodtrack/video,rodtrack/genicam,rodtrack/zenoh
 
-echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
-cargo clippy -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
-
 echo "== zenoh: unit tests, the three-process network test and the replay (loopback)"
 timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
     --lib --test zenoh_network --test zenoh_replay -- --test-threads=1
+
+# Release profile, after the release build above: zenoh's build scripts and proc macros (and
+# FFmpeg's bindings) are reused, only the crates are checked again.
+echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
+cargo clippy --release -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
 
 echo "== zenoh: the binary with every feature"
 cargo build --release -p rodtrack --features video,genicam,zenoh

@@ -11,11 +11,8 @@ target="${CARGO_TARGET_DIR:-$PWD/target}"
 bin="${RODTRACK_BIN:-$target/release/rodtrack}"
 venv="$target/ci-zenoh-venv"
 
-if ! "$venv/bin/python" -c "import zenoh" 2>/dev/null; then
-  rm -rf "$venv"
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install -q --disable-pip-version-check "eclipse-zenoh==1.10.2"
-fi
+source .ci/packages.sh
+venv_install "$venv" "${zenoh_venv_pkgs[@]}"
 
 tmp=$(mktemp -d)
 pids=()
