@@ -27,10 +27,10 @@ pub mod source;
 pub use error::{IoError, SourceError};
 pub use frame::{BufferPool, FrameBuffer, FrameMeta, Timestamp};
 pub use sink::{
-    decode_udp_events, decode_udp_packet, parse_event_json, read_events_jsonl,
-    read_measurements_csv, read_measurements_jsonl, BallCsvSink, BallJsonlSink, BallSink,
-    BallVecSink, CsvSink, EventJsonlSink, EventMultiSink, EventSink, EventVecSink, JsonlSink,
-    MeasurementSink, MultiSink, UdpEventSink, UdpSink, VecSink,
+    decode_udp_ball, decode_udp_events, decode_udp_packet, parse_event_json, read_events_jsonl,
+    read_measurements_csv, read_measurements_jsonl, BallCsvSink, BallJsonlSink, BallMultiSink,
+    BallSink, BallVecSink, CsvSink, EventJsonlSink, EventMultiSink, EventSink, EventVecSink,
+    JsonlSink, MeasurementSink, MultiSink, UdpBallSink, UdpEventSink, UdpSink, VecSink,
 };
 pub use source::{
     FrameSource, ImageSequence, ImageSequenceOptions, InputSpec, OpenOptions, RawOptions,

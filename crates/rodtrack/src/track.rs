@@ -35,7 +35,8 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
     /// Also stream every frame set over UDP to this address (e.g. 127.0.0.1:9870); with
-    /// --events-out, the ball's events too, in datagrams of their own (docs/formats.md).
+    /// --ball-out or --events-out, the ball's rows and its events too, in datagrams of their
+    /// own (docs/formats.md).
     #[arg(long)]
     pub udp: Option<String>,
     /// Algorithm: `enhanced` (default) or `paper` (the published method, as a baseline).
@@ -93,18 +94,6 @@ pub struct Args {
     /// The MCAP recording.
     #[command(flatten)]
     pub mcap: crate::recording::McapArgs,
-}
-
-/// The ball rows of a session that only wants the events: dropped.
-struct NoBallRows;
-
-impl rodtrack_io::BallSink for NoBallRows {
-    fn write(&mut self, _: &[rodtrack_core::ball::BallRow]) -> Result<(), rodtrack_io::IoError> {
-        Ok(())
-    }
-    fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
-        Ok(())
-    }
 }
 
 /// The event rules from `--events-config` and `--goal-width-mm` (the defaults otherwise).
@@ -262,20 +251,33 @@ pub fn run(args: Args) -> Result<()> {
         ..SessionOptions::default()
     };
     let mut session = Session::open(&cal, &args.inputs, options)?;
-    if let Some(path) = &args.ball_out {
-        // CSV, or JSON Lines for `.jsonl` / `.json`, as the rods' rows.
-        let created: Result<Box<dyn rodtrack_io::BallSink>, _> = match RowFormat::from_path(path) {
-            RowFormat::Csv => rodtrack_io::BallCsvSink::create(path).map(|s| Box::new(s) as _),
-            RowFormat::Jsonl => rodtrack_io::BallJsonlSink::create(path).map(|s| Box::new(s) as _),
-        };
-        let sink =
-            created.with_context(|| format!("creating the ball output {}", path.display()))?;
-        session = session.with_ball(&cal, sink)?;
+    // The ball is tracked for --ball-out or --events-out; its rows go to the file, and with
+    // --udp to the stream too, as datagrams of their own (`RTBL`).
+    if args.ball_out.is_some() || args.events_out.is_some() {
+        let mut sink = rodtrack_io::BallMultiSink::new();
+        if let Some(path) = &args.ball_out {
+            // CSV, or JSON Lines for `.jsonl` / `.json`, as the rods' rows.
+            let created: Result<Box<dyn rodtrack_io::BallSink>, _> =
+                match RowFormat::from_path(path) {
+                    RowFormat::Csv => {
+                        rodtrack_io::BallCsvSink::create(path).map(|s| Box::new(s) as _)
+                    }
+                    RowFormat::Jsonl => {
+                        rodtrack_io::BallJsonlSink::create(path).map(|s| Box::new(s) as _)
+                    }
+                };
+            sink.push(
+                created.with_context(|| format!("creating the ball output {}", path.display()))?,
+            );
+        }
+        if let Some(udp) = args.udp.as_deref() {
+            sink.push(Box::new(
+                rodtrack_io::UdpBallSink::new(udp).context("opening the UDP stream's ball rows")?,
+            ));
+        }
+        session = session.with_ball(&cal, Box::new(sink))?;
     }
     if let Some(path) = &args.events_out {
-        if args.ball_out.is_none() {
-            session = session.with_ball(&cal, Box::new(NoBallRows))?;
-        }
         let file = rodtrack_io::EventJsonlSink::create(path)
             .with_context(|| format!("creating the events output {}", path.display()))?;
         let mut sink = rodtrack_io::EventMultiSink::new();

@@ -51,12 +51,15 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
     let receiver = {
         let done = done.clone();
         std::thread::spawn(move || {
-            let (mut rows, mut packets) = (0usize, Vec::new());
+            let (mut rows, mut packets, mut balls) = (0usize, Vec::new(), Vec::new());
             let mut buf = vec![0u8; 65_536];
             loop {
                 match rx.recv(&mut buf) {
                     Ok(n) if buf[..4] == *b"RTEV" => {
                         packets.push(rodtrack_io::decode_udp_events(&buf[..n]).unwrap())
+                    }
+                    Ok(n) if buf[..4] == *b"RTBL" => {
+                        balls.extend(rodtrack_io::decode_udp_ball(&buf[..n]).unwrap().rows)
                     }
                     Ok(n) => {
                         rodtrack_io::decode_udp_packet(&buf[..n]).unwrap();
@@ -66,7 +69,7 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
                     Err(_) => {}
                 }
             }
-            (rows, packets)
+            (rows, packets, balls)
         })
     };
     let o = rodtrack(&[
@@ -87,7 +90,7 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         &udp,
     ]);
     done.store(true, std::sync::atomic::Ordering::Relaxed);
-    let (udp_rows, udp_events) = receiver.join().unwrap();
+    let (udp_rows, udp_events, udp_balls) = receiver.join().unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("1 goal(s), score 1:0"), "{stdout}");
@@ -121,6 +124,27 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
     assert!(lines
         .iter()
         .any(|v| v["camera"] == 1 && v["status"] == "ok"));
+    // The same ball rows in the UDP stream (datagrams `RTBL`), field by field as the file
+    // has them (its 3 decimals).
+    assert_eq!(udp_balls.len(), lines.len(), "ball rows in the UDP stream");
+    for (u, v) in udp_balls.iter().zip(&lines) {
+        let camera = match u.camera {
+            rodtrack_core::CameraId::Camera(c) => serde_json::json!(c),
+            rodtrack_core::CameraId::Fused => serde_json::json!("fused"),
+        };
+        assert_eq!(
+            (serde_json::json!(u.frame), camera),
+            (v["frame"].clone(), v["camera"].clone())
+        );
+        assert_eq!(serde_json::json!(u.status), v["status"], "{u:?} {v}");
+        for (got, field) in [(u.x_mm, "x_mm"), (u.y_mm, "y_mm"), (u.vx_mm_s, "vx_mm_s")] {
+            let want = v[field].as_f64().unwrap();
+            assert!(
+                (got - want).abs() <= 0.051,
+                "{field}: {got} against {want} ({v})"
+            );
+        }
+    }
     let truth = rodtrack_io::read_events_jsonl(&rec.join("events_truth.jsonl")).unwrap();
     let found = rodtrack_io::read_events_jsonl(&events).unwrap();
     // The same events in the UDP stream, beside the rows, with the running score.

@@ -11,6 +11,7 @@ mod csv;
 mod events;
 mod jsonl;
 mod udp;
+mod udp_ball;
 mod udp_events;
 
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
@@ -21,6 +22,10 @@ pub use udp::{
     decode_udp_packet, encode_udp_packet, push_row_motion, status_code, status_from_code,
     UdpPacket, UdpSink, UDP_CAMERA_FUSED, UDP_DEFAULT_ADDR, UDP_FLAG_TURNS_KNOWN, UDP_HEADER_BYTES,
     UDP_MAGIC, UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
+};
+pub use udp_ball::{
+    decode_udp_ball, encode_udp_ball, BallMultiSink, UdpBallPacket, UdpBallSink,
+    UDP_BALL_HEADER_BYTES, UDP_BALL_MAGIC, UDP_BALL_ROW_BYTES, UDP_BALL_VERSION, UDP_MAX_BALL_ROWS,
 };
 pub use udp_events::{
     decode_udp_events, encode_udp_events, EventMultiSink, UdpEventPacket, UdpEventSink,
