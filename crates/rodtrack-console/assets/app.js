@@ -64,6 +64,7 @@ function connect() {
       const m = JSON.parse(ev.data);
       if (m.t === 'rows') addRows(m.rows);
       else if (m.t === 'stats') showStats(m);
+      else if (m.t === 'ball') showBall(m);
     } else {
       const f = parseFrame(ev.data);
       if (f) showFrame(f);
@@ -342,6 +343,39 @@ function showEvents(ev) {
   const html = ev.last.length === 0 ? 'none yet' : ev.last.slice().reverse()
     .map((e) => `<span class="${e.event}">${eventText(e)}</span>`).join(' · ');
   if ($('events').innerHTML !== html) $('events').innerHTML = html;
+}
+
+// The ball on a top view of the field (table frame: x along the table, goal A on the left;
+// y across, up on the page), its trail of the last second, its status and speed.
+function showBall(b) {
+  const cv = $('field'), g = cv.getContext('2d');
+  const [len, wid] = b.field_mm, pad = 8;
+  const k = Math.min((cv.width - 2 * pad) / len, (cv.height - 2 * pad) / wid);
+  const px = (x) => cv.width / 2 + x * k, py = (y) => cv.height / 2 - y * k;
+  g.clearRect(0, 0, cv.width, cv.height);
+  g.strokeStyle = '#3b444e'; g.lineWidth = 1;
+  g.strokeRect(px(-len / 2), py(wid / 2), len * k, wid * k);
+  g.beginPath(); g.moveTo(px(0), py(wid / 2)); g.lineTo(px(0), py(-wid / 2)); g.stroke();
+  // The trail, oldest first; null where the ball was lost breaks it.
+  g.strokeStyle = '#7fa7d6'; g.beginPath();
+  let pen = false, points = 0;
+  for (const p of b.trail) {
+    if (!p) { pen = false; continue; }
+    if (pen) g.lineTo(px(p[0]), py(p[1])); else g.moveTo(px(p[0]), py(p[1]));
+    pen = true; points++;
+  }
+  g.stroke();
+  const seen = b.status === 'ok' || b.status === 'predicted';
+  if (seen) {
+    g.fillStyle = b.status === 'ok' ? '#f0a030' : '#8a6a40';
+    g.beginPath(); g.arc(px(b.x_mm), py(b.y_mm), 4, 0, 2 * Math.PI); g.fill();
+  }
+  cv.dataset.trail = String(points);
+  const text = seen
+    ? `${(b.speed_mm_s / 1000).toFixed(2)} m/s at (${b.x_mm.toFixed(0)}, ${b.y_mm.toFixed(0)}) mm ${b.status}`
+    : b.status;
+  if ($('ball').textContent !== text) $('ball').textContent = text;
+  rt.ball = b;
 }
 
 // ------------------------------------------------------------------- calibration

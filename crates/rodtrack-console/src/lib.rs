@@ -54,11 +54,15 @@
 //! - [`ConsoleHandle::publish_rows`]`(&[Measurement])`, [`ConsoleHandle::publish_stats`].
 //! - [`ConsoleHandle::publish_events`]`(&[BallEvent])`: the ball's running score and last
 //!   events (from the session's event sink).
+//! - [`ConsoleHandle::publish_ball`]`(&[BallRow])` (one frame set's rows per call, from the
+//!   session's ball sink) and [`ConsoleHandle::set_ball_field`]: the ball's position, speed
+//!   and trail on a top view of the field.
 //! - [`ConsoleHandle::attach_session`]`(Arc<dyn SessionCommands>)`: the running session, for
 //!   the page's re-anchoring of a rod's turn count (see [`control`]).
 //! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions,
 //!   `/api/reanchor` (see [`server`]).
 
+mod ball;
 pub mod calib;
 pub mod control;
 pub mod error;
@@ -282,6 +286,8 @@ pub(crate) struct Shared {
     pub session: Mutex<control::Attached>,
     /// The ball's score and last events ([`ConsoleHandle::publish_events`]).
     pub events: Mutex<events::EventBoard>,
+    /// The ball's last row and trail ([`ConsoleHandle::publish_ball`]).
+    pub ball: Mutex<ball::BallBoard>,
 }
 
 impl Shared {
@@ -395,6 +401,7 @@ impl Console {
             token: guard::new_token(),
             session: Mutex::new(None),
             events: Mutex::new(events::EventBoard::default()),
+            ball: Mutex::new(ball::BallBoard::default()),
         });
         let guard = Arc::new(guard::GuardConfig {
             addr: local,
@@ -622,6 +629,25 @@ impl ConsoleHandle {
         let t0 = Instant::now();
         server::lock(&self.shared.events).push(events);
         self.shared.account(t0);
+    }
+
+    /// Shows the ball on the page: one frame set's rows per call (each camera's and the fused
+    /// one; the fused row is shown, else a camera's), its speed, and the trail of the last
+    /// second. Called once per frame set off the cameras' threads: a plain lock, held by the
+    /// console only to copy the trail; no allocation.
+    pub fn publish_ball(&self, rows: &[rodtrack_core::ball::BallRow]) {
+        if rows.is_empty() {
+            return;
+        }
+        let t0 = Instant::now();
+        server::lock(&self.shared.ball).push(rows);
+        self.shared.account(t0);
+    }
+
+    /// The field's size for the ball's top view (mm; the reference table's 1200 x 680 until
+    /// set).
+    pub fn set_ball_field(&self, length_mm: f64, width_mm: f64) {
+        server::lock(&self.shared.ball).set_field(length_mm, width_mm);
     }
 
     /// Attaches the running tracking session: the page then offers to re-anchor a rod's turn

@@ -3,8 +3,8 @@
 //! | route | what |
 //! |---|---|
 //! | `GET /`, `/app.js`, `/style.css` | the page (embedded, no network) |
-//! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}` (the status, with the ball's `events`: `score`, `count`, `last`); binary frames |
-//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead, the ball's score and last events (`events`) |
+//! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}` (the status, with the ball's `events`: `score`, `count`, `last`), `{"t":"ball",...}` (when the ball is tracked: `field_mm`, `frame`, `camera`, `status`, `x_mm`, `y_mm`, `speed_mm_s`, `trail` of the last second, `[x, y]` or `null` where lost); binary frames |
+//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead, the ball's score and last events (`events`), the ball's last row and trail (`ball`, as the live view's `ball` message; `null` before the first) |
 //! | `GET /api/calib` | calibration state: per camera its inputs, frozen frame, outcomes |
 //! | `POST /api/calib/{cam}/freeze` | freeze the camera's next frame |
 //! | `GET /api/calib/{cam}/frame` | the frozen frame (binary, like the live frames) |
@@ -172,6 +172,7 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         "clients": sh.clients.load(Ordering::Relaxed),
         "session": lock(&sh.session).is_some(),
         "events": lock(&sh.events).json(),
+        "ball": lock(&sh.ball).json(),
     })
 }
 
@@ -599,6 +600,7 @@ async fn client(mut socket: WebSocket, st: AppState) {
     let mut scratch = Vec::new();
     let mut sent_seq = vec![0u64; sh.cameras.len()];
     let mut last_stats = Instant::now() - Duration::from_secs(1);
+    let mut ball_sent = 0u64;
     loop {
         tokio::select! {
             _ = tick.tick() => {}
@@ -614,6 +616,21 @@ async fn client(mut socket: WebSocket, st: AppState) {
         cursor = next;
         if let Some(text) = rows {
             if socket.send(Message::Text(text.into())).await.is_err() {
+                break;
+            }
+        }
+        // The ball, when a frame set came since the last message.
+        let ball = {
+            let board = lock(&sh.ball);
+            (board.count() != ball_sent).then(|| (board.count(), board.json()))
+        };
+        if let Some((count, Some(v))) = ball {
+            ball_sent = count;
+            if socket
+                .send(Message::Text(v.to_string().into()))
+                .await
+                .is_err()
+            {
                 break;
             }
         }

@@ -25,9 +25,18 @@ pub struct SimRun<'a> {
     /// Called with every write of filtered rows (each camera's, then the fused ones) and the
     /// latest progress.
     pub on_rows: Option<RowsCallback>,
-    /// Also the ball and its events, with this calibration (the cameras' table frame and
-    /// ball) into this sink ([`Session::with_events`]).
-    pub events: Option<(&'a CalibrationFile, rodtrack_io::EventVecSink)>,
+    /// Also the ball and its events ([`Session::with_ball`], [`Session::with_events`]).
+    pub events: Option<BallRun<'a>>,
+}
+
+/// See [`SimRun::events`].
+pub struct BallRun<'a> {
+    /// The calibration with the cameras' table frame and ball.
+    pub cal: &'a CalibrationFile,
+    /// Where the ball's rows go.
+    pub rows: Box<dyn rodtrack_io::BallSink>,
+    /// Where its events go (default rules).
+    pub events: Box<dyn rodtrack_io::EventSink>,
 }
 
 /// See [`SimRun::hooks`]: given the session's cameras before it starts.
@@ -191,10 +200,11 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
         on_rows: run.on_rows,
     };
     let mut session = Session::from_cameras(cameras, options).with_hooks(hooked.clone());
-    if let Some((cal, events)) = run.events {
-        session = session
-            .with_ball(cal, Box::new(rodtrack_io::BallVecSink::default()))?
-            .with_events(cal, Default::default(), Box::new(events))?;
+    if let Some(b) = run.events {
+        session =
+            session
+                .with_ball(b.cal, b.rows)?
+                .with_events(b.cal, Default::default(), b.events)?;
     }
     let (report, sink) = session.run(sink)?;
     drop(sink);

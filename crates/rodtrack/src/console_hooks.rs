@@ -154,6 +154,19 @@ impl Hooks for LiveHooks {
 /// the last events.
 pub struct ConsoleEvents(pub Arc<ConsoleHandle>);
 
+/// The ball's rows to the web console (its top view of the field: position, trail, speed).
+pub struct ConsoleBall(pub Arc<ConsoleHandle>);
+
+impl rodtrack_io::BallSink for ConsoleBall {
+    fn write(&mut self, rows: &[rodtrack_core::ball::BallRow]) -> Result<(), rodtrack_io::IoError> {
+        self.0.publish_ball(rows);
+        Ok(())
+    }
+    fn flush(&mut self) -> Result<(), rodtrack_io::IoError> {
+        Ok(())
+    }
+}
+
 impl rodtrack_io::EventSink for ConsoleEvents {
     fn write(
         &mut self,

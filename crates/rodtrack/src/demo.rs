@@ -122,7 +122,21 @@ pub fn run(args: Args) -> Result<()> {
             paper: true,
             hooks,
             on_rows: Some(on_rows),
-            events: ball_cal.as_ref().map(|c| (c, found_events.clone())),
+            events: ball_cal.as_ref().map(|cal| {
+                // The ball's rows and events to the console too (its top view, the score).
+                let mut events = rodtrack_io::EventMultiSink::new();
+                events.push(Box::new(found_events.clone()));
+                let mut rows = rodtrack_io::BallMultiSink::new();
+                if let Some(c) = &console {
+                    events.push(Box::new(crate::console_hooks::ConsoleEvents(c.clone())));
+                    rows.push(Box::new(crate::console_hooks::ConsoleBall(c.clone())));
+                }
+                sim_run::BallRun {
+                    cal,
+                    rows: Box::new(rows),
+                    events: Box::new(events),
+                }
+            }),
         },
     )?;
     let loop_s = t_loop.elapsed().as_secs_f64();

@@ -275,6 +275,10 @@ pub fn run(args: Args) -> Result<()> {
                 rodtrack_io::UdpBallSink::new(udp).context("opening the UDP stream's ball rows")?,
             ));
         }
+        if let Some(c) = &console {
+            c.set_ball_field(events_config.field_length_mm, events_config.field_width_mm);
+            sink.push(Box::new(crate::console_hooks::ConsoleBall(c.clone())));
+        }
         session = session.with_ball(&cal, Box::new(sink))?;
     }
     if let Some(path) = &args.events_out {
