@@ -54,10 +54,10 @@ pub fn run(args: Args) -> Result<()> {
         );
         cals.push(cal);
     }
-    // With scripted ball events (scenario `goals`): the ball and its events too, with the
-    // cameras' table frame and ball calibrated from the same clicks.
+    // With a ball in the scenario (`ball`, `goals`, `stretch`): the ball and its events too,
+    // with the cameras' table frame and ball calibrated from the same clicks.
     let truth_events = sim.events_truth();
-    let ball_cal = if truth_events.is_empty() {
+    let ball_cal = if sim.ball_truth(0).is_none() {
         None
     } else {
         Some(rodtrack_core::calib::CalibrationFile {
@@ -68,6 +68,7 @@ pub fn run(args: Args) -> Result<()> {
         })
     };
     let found_events = rodtrack_io::EventVecSink::default();
+    let ball_rows = rodtrack_io::BallVecSink::default();
     // 2. Track every frame in both modes, rodtrack's and the paper's, on the same frames: the
     // simulated cameras through a session, the paper's algorithm in its frame hook.
     let console = match args.console {
@@ -127,6 +128,7 @@ pub fn run(args: Args) -> Result<()> {
                 let mut events = rodtrack_io::EventMultiSink::new();
                 events.push(Box::new(found_events.clone()));
                 let mut rows = rodtrack_io::BallMultiSink::new();
+                rows.push(Box::new(ball_rows.clone()));
                 if let Some(c) = &console {
                     events.push(Box::new(crate::console_hooks::ConsoleEvents(c.clone())));
                     rows.push(Box::new(crate::console_hooks::ConsoleBall(c.clone())));
@@ -177,6 +179,7 @@ pub fn run(args: Args) -> Result<()> {
     println!("\nthe paper's algorithm on the same frames (paper mode):");
     print!("{}", format_table(&score(&truth, &with_none(&rows.paper))));
     if ball_cal.is_some() {
+        print_ball(&sim, &ball_rows.rows(), ncam);
         print_events(&truth_events, &found_events.events());
     }
     println!("\ndone in {:.1} s", t_start.elapsed().as_secs_f64());
@@ -189,6 +192,46 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The ball's rows against the truth: the fused ones with several cameras (camera 0's with
+/// one): detected on the frames where a camera sees at least half of it, position error.
+fn print_ball(sim: &rodtrack_sim::Simulation, rows: &[rodtrack_core::ball::BallRow], ncam: usize) {
+    use rodtrack_core::ball::BallStatus;
+    let shown = if ncam > 1 {
+        CameraId::Fused
+    } else {
+        CameraId::Camera(0)
+    };
+    let (mut errs, mut half, mut found) = (Vec::new(), 0usize, 0usize);
+    for r in rows.iter().filter(|r| r.camera == shown) {
+        let Some(t) = sim.ball_truth(r.frame as usize) else {
+            continue;
+        };
+        let ok = r.status == BallStatus::Ok;
+        if t.visible.iter().any(|&v| v >= 0.5) {
+            half += 1;
+            found += usize::from(ok);
+        }
+        if ok {
+            errs.push((r.x_mm - t.x_mm, r.y_mm - t.y_mm));
+        }
+    }
+    let n = errs.len().max(1) as f64;
+    let mean = |f: fn(&(f64, f64)) -> f64| errs.iter().map(f).sum::<f64>() / n;
+    let (mx, my) = (mean(|e| e.0), mean(|e| e.1));
+    let std = (errs
+        .iter()
+        .map(|e| (e.0 - mx).powi(2) + (e.1 - my).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let max = errs.iter().map(|e| e.0.hypot(e.1)).fold(0.0, f64::max);
+    println!(
+        "
+the ball ({shown} rows, table frame): ok on {found} of the {half} frames where a camera sees at least half of it; position error std {std:.2} mm, max {max:.2} mm over {} ok rows",
+        errs.len()
+    );
 }
 
 /// The goals found against the scenario's, and the final scores.
