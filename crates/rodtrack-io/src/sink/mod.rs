@@ -9,6 +9,7 @@
 mod ball;
 mod csv;
 mod events;
+mod fan_out;
 mod jsonl;
 mod udp;
 mod udp_ball;
@@ -17,6 +18,8 @@ mod udp_events;
 pub use self::csv::{parse_measurements_csv, read_measurements_csv, CsvSink};
 pub use ball::{BallCsvSink, BallJsonlSink, BallSink, BallVecSink};
 pub use events::{parse_event_json, read_events_jsonl, EventJsonlSink, EventSink, EventVecSink};
+pub(crate) use fan_out::first_error;
+pub use fan_out::{BallMultiSink, EventMultiSink, FanOut, MultiSink};
 pub use jsonl::{parse_measurement_json, read_measurements_jsonl, JsonlSink};
 pub use udp::{
     decode_udp_packet, encode_udp_packet, push_row_motion, status_code, status_from_code,
@@ -24,12 +27,12 @@ pub use udp::{
     UDP_MAGIC, UDP_MAX_ROWS, UDP_ROW_BYTES, UDP_VERSION,
 };
 pub use udp_ball::{
-    decode_udp_ball, encode_udp_ball, BallMultiSink, UdpBallPacket, UdpBallSink,
-    UDP_BALL_HEADER_BYTES, UDP_BALL_MAGIC, UDP_BALL_ROW_BYTES, UDP_BALL_VERSION, UDP_MAX_BALL_ROWS,
+    decode_udp_ball, encode_udp_ball, UdpBallPacket, UdpBallSink, UDP_BALL_HEADER_BYTES,
+    UDP_BALL_MAGIC, UDP_BALL_ROW_BYTES, UDP_BALL_VERSION, UDP_MAX_BALL_ROWS,
 };
 pub use udp_events::{
-    decode_udp_events, encode_udp_events, EventMultiSink, UdpEventPacket, UdpEventSink,
-    UDP_EVENTS_HEADER_BYTES, UDP_EVENTS_MAGIC, UDP_EVENTS_VERSION, UDP_EVENT_BYTES, UDP_MAX_EVENTS,
+    decode_udp_events, encode_udp_events, UdpEventPacket, UdpEventSink, UDP_EVENTS_HEADER_BYTES,
+    UDP_EVENTS_MAGIC, UDP_EVENTS_VERSION, UDP_EVENT_BYTES, UDP_MAX_EVENTS,
 };
 
 use crate::IoError;
@@ -75,48 +78,6 @@ impl MeasurementSink for VecSink {
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())
     }
-}
-
-/// Writes to several sinks; every sink gets every call even when an earlier one fails, and the
-/// first error is returned.
-#[derive(Default)]
-pub struct MultiSink {
-    /// The sinks.
-    pub sinks: Vec<Box<dyn MeasurementSink>>,
-}
-
-impl MultiSink {
-    /// An empty set of sinks.
-    pub fn new() -> Self {
-        MultiSink::default()
-    }
-    /// Adds a sink.
-    pub fn push(&mut self, sink: Box<dyn MeasurementSink>) {
-        self.sinks.push(sink);
-    }
-}
-
-impl MeasurementSink for MultiSink {
-    fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.write(rows)))
-    }
-    fn flush(&mut self) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.flush()))
-    }
-}
-
-/// Runs every one of `results` (all of them, even after an error) and returns the first
-/// error: what a sink writing to several others returns.
-pub(crate) fn first_error(
-    results: impl Iterator<Item = Result<(), IoError>>,
-) -> Result<(), IoError> {
-    let mut first = Ok(());
-    for r in results {
-        if first.is_ok() {
-            first = r;
-        }
-    }
-    first
 }
 
 /// Decimal places written per column (CSV and JSON Lines).

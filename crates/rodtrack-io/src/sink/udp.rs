@@ -39,7 +39,7 @@
 //!
 //! 8 rods x (2 cameras + fused) = 24 rows make 1376 bytes, one Ethernet frame.
 
-use super::MeasurementSink;
+use super::{first_error, MeasurementSink};
 use crate::IoError;
 use rodtrack_core::{CameraId, Measurement, Status};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
@@ -249,6 +249,58 @@ pub(crate) fn udp_socket_to(target: &str) -> Result<(UdpSocket, SocketAddr), IoE
     Ok((socket, addr))
 }
 
+/// Numbered datagrams to one UDP address: what the row, ball and event senders share.
+#[derive(Debug)]
+pub(crate) struct Datagrams {
+    socket: UdpSocket,
+    target: SocketAddr,
+    seq: u32,
+    packet: Vec<u8>,
+}
+
+impl Datagrams {
+    /// Sends to `target` (`host:port`) from an ephemeral local port; `capacity` bytes of packet
+    /// buffer made now.
+    pub(crate) fn new(target: &str, capacity: usize) -> Result<Self, IoError> {
+        let (socket, target) = udp_socket_to(target)?;
+        Ok(Datagrams {
+            socket,
+            target,
+            seq: 0,
+            packet: Vec::with_capacity(capacity),
+        })
+    }
+
+    /// The destination.
+    pub(crate) fn target(&self) -> SocketAddr {
+        self.target
+    }
+
+    /// Sends `items` in chunks of at most `max`, one datagram each, `encode(sequence number,
+    /// chunk, packet)` making it (the number +1 per datagram, wrapping). Every chunk is sent
+    /// even after an error; the first error is returned.
+    pub(crate) fn send_chunks<T>(
+        &mut self,
+        items: &[T],
+        max: usize,
+        mut encode: impl FnMut(u32, &[T], &mut Vec<u8>) -> Result<(), IoError>,
+    ) -> Result<(), IoError> {
+        first_error(items.chunks(max.max(1)).map(|chunk| {
+            let sent = encode(self.seq, chunk, &mut self.packet).and_then(|()| {
+                self.socket
+                    .send_to(&self.packet, self.target)
+                    .map(|_| ())
+                    .map_err(|e| IoError::Net {
+                        addr: self.target.to_string(),
+                        source: e,
+                    })
+            });
+            self.seq = self.seq.wrapping_add(1);
+            sent
+        }))
+    }
+}
+
 /// Sends one datagram per `write` call (per frame id within it) to a UDP address (default
 /// [`UDP_DEFAULT_ADDR`]).
 ///
@@ -256,55 +308,29 @@ pub(crate) fn udp_socket_to(target: &str) -> Result<(UdpSocket, SocketAddr), IoE
 /// frame id. Nothing is buffered, so `flush` does nothing.
 #[derive(Debug)]
 pub struct UdpSink {
-    socket: UdpSocket,
-    target: SocketAddr,
-    seq: u32,
-    packet: Vec<u8>,
+    out: Datagrams,
 }
 
 impl UdpSink {
     /// Sends to `target` (`host:port`) from an ephemeral local port.
     pub fn new(target: &str) -> Result<Self, IoError> {
-        let (socket, addr) = udp_socket_to(target)?;
         Ok(UdpSink {
-            socket,
-            target: addr,
-            seq: 0,
-            packet: Vec::with_capacity(2048),
+            out: Datagrams::new(target, 2048)?,
         })
     }
 
     /// The destination.
     pub fn target(&self) -> SocketAddr {
-        self.target
-    }
-
-    fn send(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        encode_udp_packet(self.seq, rows, &mut self.packet)?;
-        self.seq = self.seq.wrapping_add(1);
-        self.socket
-            .send_to(&self.packet, self.target)
-            .map_err(|e| IoError::Net {
-                addr: self.target.to_string(),
-                source: e,
-            })?;
-        Ok(())
+        self.out.target()
     }
 }
 
 impl MeasurementSink for UdpSink {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
-        let mut first = Ok(());
-        for group in rows.chunk_by(|a, b| a.frame == b.frame) {
-            for chunk in group.chunks(UDP_MAX_ROWS) {
-                if let Err(e) = self.send(chunk) {
-                    if first.is_ok() {
-                        first = Err(e);
-                    }
-                }
-            }
-        }
-        first
+        first_error(
+            rows.chunk_by(|a, b| a.frame == b.frame)
+                .map(|group| self.out.send_chunks(group, UDP_MAX_ROWS, encode_udp_packet)),
+        )
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())

@@ -34,12 +34,10 @@
 //! Non-finite numbers are written as 0 (as in the CSV: [`BallRow::sanitized`]).
 
 use super::ball::BallSink;
-use super::first_error;
-use super::udp::{le, UDP_CAMERA_FUSED};
+use super::udp::{le, Datagrams, UDP_CAMERA_FUSED};
 use crate::IoError;
 use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::{CameraId, Timestamp};
-use std::net::{SocketAddr, UdpSocket};
 
 /// The ball datagram's magic.
 pub const UDP_BALL_MAGIC: [u8; 4] = *b"RTBL";
@@ -164,77 +162,32 @@ pub fn decode_udp_ball(b: &[u8]) -> Result<UdpBallPacket, IoError> {
 /// address).
 #[derive(Debug)]
 pub struct UdpBallSink {
-    socket: UdpSocket,
-    target: SocketAddr,
-    seq: u32,
-    packet: Vec<u8>,
+    out: Datagrams,
 }
 
 impl UdpBallSink {
     /// Sends to `target` (`host:port`) from an ephemeral local port.
     pub fn new(target: &str) -> Result<Self, IoError> {
-        let (socket, addr) = super::udp::udp_socket_to(target)?;
         Ok(UdpBallSink {
-            socket,
-            target: addr,
-            seq: 0,
-            packet: Vec::with_capacity(UDP_BALL_HEADER_BYTES + 8 * UDP_BALL_ROW_BYTES),
+            out: Datagrams::new(target, UDP_BALL_HEADER_BYTES + 8 * UDP_BALL_ROW_BYTES)?,
         })
     }
 }
 
 impl BallSink for UdpBallSink {
     fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
-        first_error(rows.chunks(UDP_MAX_BALL_ROWS).map(|chunk| {
-            let sent = encode_udp_ball(self.seq, chunk, &mut self.packet).and_then(|()| {
-                self.socket
-                    .send_to(&self.packet, self.target)
-                    .map(|_| ())
-                    .map_err(|e| IoError::Net {
-                        addr: self.target.to_string(),
-                        source: e,
-                    })
-            });
-            self.seq = self.seq.wrapping_add(1);
-            sent
-        }))
+        self.out
+            .send_chunks(rows, UDP_MAX_BALL_ROWS, encode_udp_ball)
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())
     }
 }
 
-/// Ball rows to several sinks (a file and the UDP stream): every sink gets every write; the
-/// first error is returned after all were written.
-#[derive(Default)]
-pub struct BallMultiSink {
-    sinks: Vec<Box<dyn BallSink>>,
-}
-
-impl BallMultiSink {
-    /// No sink yet.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Adds a sink.
-    pub fn push(&mut self, sink: Box<dyn BallSink>) {
-        self.sinks.push(sink);
-    }
-}
-
-impl BallSink for BallMultiSink {
-    fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.write(rows)))
-    }
-    fn flush(&mut self) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.flush()))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::net::UdpSocket;
 
     fn sample() -> Vec<BallRow> {
         let row = |camera, status, x_mm: f64| BallRow {

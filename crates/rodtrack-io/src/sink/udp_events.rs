@@ -35,12 +35,10 @@
 //! | 44 | 4 | reserved, 0 |
 
 use super::events::EventSink;
-use super::first_error;
-use super::udp::le;
+use super::udp::{le, Datagrams};
 use crate::IoError;
 use rodtrack_core::ball::events::{BallEvent, EventKind, Side};
 use rodtrack_core::Timestamp;
-use std::net::{SocketAddr, UdpSocket};
 
 /// The events datagram's magic.
 pub const UDP_EVENTS_MAGIC: [u8; 4] = *b"RTEV";
@@ -223,85 +221,42 @@ pub fn decode_udp_events(b: &[u8]) -> Result<UdpEventPacket, IoError> {
 /// address), with the running score (from the goals it sent).
 #[derive(Debug)]
 pub struct UdpEventSink {
-    socket: UdpSocket,
-    target: SocketAddr,
-    seq: u32,
+    out: Datagrams,
     score: [u32; 2],
-    packet: Vec<u8>,
 }
 
 impl UdpEventSink {
     /// Sends to `target` (`host:port`) from an ephemeral local port.
     pub fn new(target: &str) -> Result<Self, IoError> {
-        let (socket, addr) = super::udp::udp_socket_to(target)?;
         Ok(UdpEventSink {
-            socket,
-            target: addr,
-            seq: 0,
+            out: Datagrams::new(target, UDP_EVENTS_HEADER_BYTES + 8 * UDP_EVENT_BYTES)?,
             score: [0, 0],
-            packet: Vec::with_capacity(UDP_EVENTS_HEADER_BYTES + 8 * UDP_EVENT_BYTES),
         })
     }
 }
 
 impl EventSink for UdpEventSink {
     fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
-        first_error(events.chunks(UDP_MAX_EVENTS).map(|chunk| {
-            for e in chunk {
-                if let EventKind::Goal { score, .. } = e.kind {
-                    self.score = score;
+        let score = &mut self.score;
+        self.out
+            .send_chunks(events, UDP_MAX_EVENTS, |seq, chunk, packet| {
+                for e in chunk {
+                    if let EventKind::Goal { score: s, .. } = e.kind {
+                        *score = s;
+                    }
                 }
-            }
-            let sent =
-                encode_udp_events(self.seq, self.score, chunk, &mut self.packet).and_then(|()| {
-                    self.socket
-                        .send_to(&self.packet, self.target)
-                        .map(|_| ())
-                        .map_err(|e| IoError::Net {
-                            addr: self.target.to_string(),
-                            source: e,
-                        })
-                });
-            self.seq = self.seq.wrapping_add(1);
-            sent
-        }))
+                encode_udp_events(seq, *score, chunk, packet)
+            })
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())
     }
 }
 
-/// Events to several sinks (a file and the UDP stream): every sink gets every write; the
-/// first error is returned after all were written.
-#[derive(Default)]
-pub struct EventMultiSink {
-    sinks: Vec<Box<dyn EventSink>>,
-}
-
-impl EventMultiSink {
-    /// No sink yet.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Adds a sink.
-    pub fn push(&mut self, sink: Box<dyn EventSink>) {
-        self.sinks.push(sink);
-    }
-}
-
-impl EventSink for EventMultiSink {
-    fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.write(events)))
-    }
-    fn flush(&mut self) -> Result<(), IoError> {
-        first_error(self.sinks.iter_mut().map(|s| s.flush()))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::net::UdpSocket;
 
     fn sample() -> Vec<BallEvent> {
         let at = |frame: u64, kind| BallEvent {
