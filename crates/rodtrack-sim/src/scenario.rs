@@ -140,9 +140,9 @@ pub struct Scenario {
 }
 
 /// Names accepted by [`Scenario::by_name`].
-pub const SCENARIO_NAMES: [&str; 14] = [
+pub const SCENARIO_NAMES: [&str; 15] = [
     "exp1", "exp2", "exp3", "spin600", "spin3000", "lighting", "gameplay", "sweep", "static",
-    "poses", "ball", "hands", "goals", "stretch",
+    "poses", "ball", "hands", "goals", "stretch", "shots",
 ];
 
 impl Scenario {
@@ -338,6 +338,11 @@ impl Scenario {
                 // stays still; for crediting the shot to the rod that swung.
                 end = 24.0;
                 crate::goals::script(&mut rng, scene, &mut s, end, crate::goals::Kicks::STRETCH);
+            }
+            "shots" => {
+                // The plays of `goals` with hard shots, 8 to 15 m/s: the fast ball's streak.
+                end = 24.0;
+                crate::goals::script(&mut rng, scene, &mut s, end, crate::goals::Kicks::HARD);
             }
             "hands" => {
                 // Hands and moving figures, no ball: for false detections.
