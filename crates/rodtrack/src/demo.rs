@@ -179,6 +179,9 @@ pub fn run(args: Args) -> Result<()> {
     println!("\nthe paper's algorithm on the same frames (paper mode):");
     print!("{}", format_table(&score(&truth, &with_none(&rows.paper))));
     if ball_cal.is_some() {
+        if let Some(p) = std::env::var_os("RODTRACK_BALL_ERRORS_CSV") {
+            write_ball_errors(std::path::Path::new(&p), &sim, &ball_rows.rows())?;
+        }
         print_ball(&sim, &ball_rows.rows(), ncam);
         print_events(&truth_events, &found_events.events());
     }
@@ -283,6 +286,41 @@ fn print_events(
         goals.found, goals.truth, goals.false_events, sf[0], sf[1], st[0], st[1],
         shots.found, shots.truth, shots.false_events, 100.0 * worst
     );
+}
+
+/// Writes every ball row beside its truth (`RODTRACK_BALL_ERRORS_CSV=path`, for analysis).
+fn write_ball_errors(
+    path: &std::path::Path,
+    sim: &rodtrack_sim::Simulation,
+    rows: &[rodtrack_core::ball::BallRow],
+) -> Result<()> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(
+        w,
+        "frame,camera,status,x_mm,y_mm,speed_mm_s,true_x_mm,true_y_mm,true_speed_mm_s,visible,error_mm"
+    )?;
+    for r in rows {
+        let Some(t) = sim.ball_truth(r.frame as usize) else {
+            continue;
+        };
+        let visible: Vec<String> = t.visible.iter().map(|v| format!("{v:.2}")).collect();
+        writeln!(
+            w,
+            "{},{},{},{:.3},{:.3},{:.1},{:.3},{:.3},{:.1},{},{:.3}",
+            r.frame,
+            r.camera,
+            r.status,
+            r.x_mm,
+            r.y_mm,
+            r.vx_mm_s.hypot(r.vy_mm_s),
+            t.x_mm,
+            t.y_mm,
+            t.vx_mm_s.hypot(t.vy_mm_s),
+            visible.join("/"),
+            (r.x_mm - t.x_mm).hypot(r.y_mm - t.y_mm)
+        )?;
+    }
+    Ok(())
 }
 
 /// Writes each `ok` row's error against the truth (`RODTRACK_ERRORS_CSV=path`, for analysis).
