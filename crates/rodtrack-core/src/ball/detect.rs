@@ -289,7 +289,7 @@ impl BallDetector {
                 let step = ((rq / 4.0).floor() as usize).clamp(1, 2);
                 if region[2] > region[0] && region[3] > region[1] {
                     if !self.plain {
-                        touch_rows(view, region);
+                        touch_rows(view, region, step);
                     }
                     if let Some(d) = self.scan_and_fit(view, region, step) {
                         return Some(d);
@@ -512,7 +512,11 @@ impl BallDetector {
         let half = if self.plain { f64::NAN } else { 1.8 * rq + 2.0 };
         if self.alpha.start(blob.cx_q, blob.cy_q, half) {
             // The disc the rays cross up to the expected edge and the bilinear neighbour.
-            self.prefill_alpha(view, blob.cx_q, blob.cy_q, rq + 2.0);
+            let r = rq + 2.0;
+            let (cx, cy) = (blob.cx_q, blob.cy_q);
+            let square = [cx - r, cy - r, cx + r + 1.0, cy + r + 1.0].map(|v| v.max(0.0) as usize);
+            touch_rows(view, square, 1);
+            self.prefill_alpha(view, cx, cy, r);
         }
         self.rays.clear();
         self.octant.clear();
@@ -663,15 +667,19 @@ impl BallDetector {
 }
 
 /// Reads one byte of every 64 (a cache line) of the pixel rows of the quads `region` covers,
-/// all independent loads: the mosaic is fetched from memory in parallel before the scan and
-/// the fit read it in order (a camera's frame is new to the caches).
-fn touch_rows(view: &FrameView, region: [usize; 4]) {
+/// every `step`-th quad row, all independent loads: the mosaic is fetched from memory in
+/// parallel before the scan or the fit read it in order (a camera's frame is new to the
+/// caches).
+fn touch_rows(view: &FrameView, region: [usize; 4], step: usize) {
     let [x0, y0, x1, y1] = region;
     let (d, s) = (view.data(), view.stride());
     let bytes_per_px = view.format().bytes_per_pixel();
     let (b0, b1) = (2 * x0 * bytes_per_px, 2 * x1 * bytes_per_px);
     let mut acc = 0u8;
-    for y in 2 * y0..2 * y1 {
+    let rows = (y0..y1)
+        .step_by(step.max(1))
+        .flat_map(|qy| [2 * qy, 2 * qy + 1]);
+    for y in rows {
         let Some(row) = d.get(y * s + b0..(y * s + b1).min(d.len())) else {
             break;
         };
