@@ -102,6 +102,46 @@ impl QuadLayout {
             }
         }
     }
+
+    /// Calls `f(k, rgb)` with [`QuadLayout::rgb`] of quads `(qx0 + k step, qy)`, `k < n`, the
+    /// layout matched once for the row (the same values, bit for bit). The caller keeps the
+    /// quads inside the view.
+    #[inline(always)]
+    pub fn for_row(
+        &self,
+        view: &FrameView,
+        qy: usize,
+        qx0: usize,
+        step: usize,
+        n: usize,
+        mut f: impl FnMut(usize, [f32; 3]),
+    ) {
+        if let Kind::Bayer { r, b, wide: false } = self.kind {
+            let (d, s) = (view.data(), view.stride());
+            let end = 2 * (qx0 + n.saturating_sub(1) * step) + 2;
+            let rows = (
+                d.get(2 * qy * s..2 * qy * s + end),
+                d.get((2 * qy + 1) * s..(2 * qy + 1) * s + end),
+            );
+            if let (Some(top), Some(bottom)) = rows {
+                for k in 0..n {
+                    let x = 2 * (qx0 + k * step);
+                    let v = [
+                        top[x] as f32,
+                        top[x + 1] as f32,
+                        bottom[x] as f32,
+                        bottom[x + 1] as f32,
+                    ];
+                    let g = 0.5 * (v[0] + v[1] + v[2] + v[3] - v[r] - v[b]);
+                    f(k, [v[r], g, v[b]]);
+                }
+                return;
+            }
+        }
+        for k in 0..n {
+            f(k, self.rgb(view, qx0 + k * step, qy));
+        }
+    }
 }
 
 /// Chromaticity `(R, G) / (R + G + B)` (independent of shading); `None` for a black sample.

@@ -92,6 +92,24 @@ impl AlphaMemo {
         true
     }
 
+    /// The memo's cell of quad `(x, y)` when it covers the 2 x 2 block from `(x, y)` to
+    /// `(x + 1, y + 1)` (cells `c`, `c + 1`, `c + w`, `c + w + 1`).
+    #[inline]
+    fn block(&self, x: usize, y: usize) -> Option<usize> {
+        let (dx, dy) = (x as isize - self.x0, y as isize - self.y0);
+        (dx >= 0 && dy >= 0 && (dx as usize) + 1 < self.w && (dy as usize) + 1 < self.h)
+            .then(|| dy as usize * self.w + dx as usize)
+    }
+
+    /// The quad of cell `c`.
+    #[inline]
+    fn quad(&self, c: usize) -> (usize, usize) {
+        (
+            (self.x0 + (c % self.w) as isize) as usize,
+            (self.y0 + (c / self.w) as isize) as usize,
+        )
+    }
+
     /// The memo's cell of quad `(x, y)`, if it covers it.
     #[inline]
     fn cell(&self, x: usize, y: usize) -> Option<usize> {
@@ -270,6 +288,9 @@ impl BallDetector {
                 ];
                 let step = ((rq / 4.0).floor() as usize).clamp(1, 2);
                 if region[2] > region[0] && region[3] > region[1] {
+                    if !self.plain {
+                        touch_rows(view, region, step);
+                    }
                     if let Some(d) = self.scan_and_fit(view, region, step) {
                         return Some(d);
                     }
@@ -299,11 +320,17 @@ impl BallDetector {
         if n == 0 || n > self.mask.len() {
             return None;
         }
-        for gy in 0..gh {
+        let colours = &self.colours;
+        for (gy, row) in self.mask[..n].chunks_exact_mut(gw).enumerate() {
             let qy = y0 + gy * step;
-            for gx in 0..gw {
-                let qx = x0 + gx * step;
-                self.mask[gy * gw + gx] = self.colours.is_ball(self.layout.rgb(view, qx, qy)) as u8;
+            if self.plain {
+                for (gx, m) in row.iter_mut().enumerate() {
+                    *m = colours.is_ball(self.layout.rgb(view, x0 + gx * step, qy)) as u8;
+                }
+            } else {
+                self.layout.for_row(view, qy, x0, step, gw, |gx, rgb| {
+                    row[gx] = colours.is_ball(rgb) as u8;
+                });
             }
         }
         let mut best: Option<Blob> = None;
@@ -395,27 +422,77 @@ impl BallDetector {
         if x_q < 0.0 || y_q < 0.0 {
             return None;
         }
-        let (ix, iy) = (x_q.floor() as usize, y_q.floor() as usize);
-        if ix + 1 >= self.qw || iy + 1 >= self.qh {
+        // Not negative: the integer part is the floor.
+        let (ix, iy) = (x_q as usize, y_q as usize);
+        if ix >= self.qw.saturating_sub(1) || iy >= self.qh.saturating_sub(1) {
             return None;
         }
         let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
-        let mut a = |x: usize, y: usize| match self.alpha.cell(x, y) {
+        let [a00, a10, a01, a11] = match self.alpha.block(ix, iy) {
             Some(c) => {
-                let v = self.alpha.cells[c];
-                if v.is_nan() {
-                    let v = self.colours.alpha(self.layout.rgb(view, x, y));
-                    self.alpha.cells[c] = v;
-                    v
-                } else {
-                    v
-                }
+                let w = self.alpha.w;
+                [
+                    self.memo_alpha(view, c),
+                    self.memo_alpha(view, c + 1),
+                    self.memo_alpha(view, c + w),
+                    self.memo_alpha(view, c + w + 1),
+                ]
             }
-            None => self.colours.alpha(self.layout.rgb(view, x, y)),
+            None => {
+                let mut a = |x: usize, y: usize| match self.alpha.cell(x, y) {
+                    Some(c) => self.memo_alpha(view, c),
+                    None => self.colours.alpha(self.layout.rgb(view, x, y)),
+                };
+                [a(ix, iy), a(ix + 1, iy), a(ix, iy + 1), a(ix + 1, iy + 1)]
+            }
         };
-        let top = a(ix, iy) * (1.0 - fx) + a(ix + 1, iy) * fx;
-        let bot = a(ix, iy + 1) * (1.0 - fx) + a(ix + 1, iy + 1) * fx;
+        let top = a00 * (1.0 - fx) + a10 * fx;
+        let bot = a01 * (1.0 - fx) + a11 * fx;
         Some(top * (1.0 - fy) + bot * fy)
+    }
+
+    /// The memo's colour position of cell `c`, computed on first use.
+    #[inline(always)]
+    fn memo_alpha(&mut self, view: &FrameView, c: usize) -> f32 {
+        let v = self.alpha.cells[c];
+        if !v.is_nan() {
+            return v;
+        }
+        let (x, y) = self.alpha.quad(c);
+        let v = self.colours.alpha(self.layout.rgb(view, x, y));
+        self.alpha.cells[c] = v;
+        v
+    }
+
+    /// Fills the memo's cells within `radius_q` quads of `(cx_q, cy_q)` row by row (the quads
+    /// nearly every ray reads; the rest stay computed on first use).
+    fn prefill_alpha(&mut self, view: &FrameView, cx_q: f64, cy_q: f64, radius_q: f64) {
+        let m = &mut self.alpha;
+        let (qw, qh) = (self.qw as isize, self.qh as isize);
+        let y_lo = ((cy_q - radius_q).ceil() as isize).max(m.y0).max(0);
+        let y_hi = ((cy_q + radius_q).floor() as isize)
+            .min(m.y0 + m.h as isize - 1)
+            .min(qh - 1);
+        for y in y_lo..=y_hi {
+            let dy = y as f64 - cy_q;
+            let half = (radius_q * radius_q - dy * dy).max(0.0).sqrt();
+            let x_lo = ((cx_q - half).ceil() as isize).max(m.x0).max(0);
+            let x_hi = ((cx_q + half).floor() as isize)
+                .min(m.x0 + m.w as isize - 1)
+                .min(qw - 1);
+            if x_hi < x_lo {
+                continue;
+            }
+            let row = (y - m.y0) as usize * m.w;
+            let first = row + (x_lo - m.x0) as usize;
+            let n = (x_hi - x_lo + 1) as usize;
+            let cells = &mut m.cells[first..first + n];
+            let colours = &self.colours;
+            self.layout
+                .for_row(view, y as usize, x_lo as usize, 1, n, |k, rgb| {
+                    cells[k] = colours.alpha(rgb);
+                });
+        }
     }
 
     fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
@@ -433,7 +510,14 @@ impl BallDetector {
         let rq = blob.rq;
         let dt = 0.25;
         let half = if self.plain { f64::NAN } else { 1.8 * rq + 2.0 };
-        self.alpha.start(blob.cx_q, blob.cy_q, half);
+        if self.alpha.start(blob.cx_q, blob.cy_q, half) {
+            // The disc the rays cross up to the expected edge and the bilinear neighbour.
+            let r = rq + 2.0;
+            let (cx, cy) = (blob.cx_q, blob.cy_q);
+            let square = [cx - r, cy - r, cx + r + 1.0, cy + r + 1.0].map(|v| v.max(0.0) as usize);
+            touch_rows(view, square, 1);
+            self.prefill_alpha(view, cx, cy, r);
+        }
         self.rays.clear();
         self.octant.clear();
         for i in 0..N_RAYS {
@@ -580,6 +664,33 @@ impl BallDetector {
         }
         (c[0].is_finite() && c[1].is_finite()).then_some(c)
     }
+}
+
+/// Reads one byte of every 64 (a cache line) of the pixel rows of the quads `region` covers,
+/// every `step`-th quad row, all independent loads: the mosaic is fetched from memory in
+/// parallel before the scan or the fit read it in order (a camera's frame is new to the
+/// caches).
+fn touch_rows(view: &FrameView, region: [usize; 4], step: usize) {
+    let [x0, y0, x1, y1] = region;
+    let (d, s) = (view.data(), view.stride());
+    let bytes_per_px = view.format().bytes_per_pixel();
+    let (b0, b1) = (2 * x0 * bytes_per_px, 2 * x1 * bytes_per_px);
+    let mut acc = 0u8;
+    let rows = (y0..y1)
+        .step_by(step.max(1))
+        .flat_map(|qy| [2 * qy, 2 * qy + 1]);
+    for y in rows {
+        let Some(row) = d.get(y * s + b0..(y * s + b1).min(d.len())) else {
+            break;
+        };
+        for b in row.iter().step_by(64) {
+            acc ^= *b;
+        }
+        if let Some(b) = row.last() {
+            acc ^= *b;
+        }
+    }
+    std::hint::black_box(acc);
 }
 
 /// A mask of the first `n` of 64 bits.
