@@ -4,8 +4,10 @@
 # once), runs rodtrack-zenoh's unit tests and the network test: real `rodtrack` processes on
 # loopback (two camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
 # endpoints, multicast scouting off; a camera node killed and restarted), bounded in time; an
-# MCAP recording replayed on the network (`replay`); the Python subscriber example against a
-# fusion node and a camera node (.ci/zenoh_python.sh, eclipse-zenoh in a venv).
+# MCAP recording replayed on the network (`replay`); a short run of the latency benchmark
+# across processes (`bench-zenoh`: its numbers are printed, not checked; it fails on rows
+# lost); the Python and the Rust subscriber examples against a fusion node and camera nodes
+# (.ci/zenoh_python.sh, eclipse-zenoh in a venv).
 # Runs after .ci/video.sh and .ci/genicam.sh (their system packages are installed).
 # Non-interactive, run as root (CI).
 set -euo pipefail
@@ -20,9 +22,14 @@ echo "== zenoh: unit tests, the three-process network test and the replay (loopb
 timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
     --lib --test zenoh_network --test zenoh_replay -- --test-threads=1
 
-echo "== zenoh: the binary with every feature"
-cargo build --release -p rodtrack --features video,genicam,zenoh
-target/release/rodtrack fuse --help | head -3
+echo "== zenoh: the binary with every feature, and the Rust subscriber example"
+cargo build --release -p rodtrack -p rodtrack-zenoh --features "$features" \
+    --bin rodtrack --example fused_subscriber
+bin="${CARGO_TARGET_DIR:-target}/release/rodtrack"
+"$bin" fuse --help | head -3
 
-echo "== zenoh: the Python subscriber example (eclipse-zenoh) against real nodes (loopback)"
+echo "== zenoh: latency across processes (bench-zenoh: 2 camera nodes and a fusion node, 3 s)"
+timeout 180 "$bin" bench-zenoh --frames 600
+
+echo "== zenoh: the Python and Rust subscriber examples against real nodes (loopback)"
 timeout 300 bash .ci/zenoh_python.sh
