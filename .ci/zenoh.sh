@@ -4,8 +4,10 @@
 # camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
 # endpoints, multicast scouting off; a camera node killed and restarted), bounded in time; an
 # MCAP recording replayed on the network (`replay`); lints the binary and rodtrack-zenoh with
-# `video`, `genicam` and `zenoh` on (one feature set, built once); the Python subscriber example against a
-# fusion node and a camera node (.ci/zenoh_python.sh, eclipse-zenoh in a venv).
+# `video`, `genicam` and `zenoh` on (one feature set, built once); a short run of the latency
+# benchmark across processes (`bench-zenoh`: its numbers are printed, not checked; it fails on
+# rows lost); the Python and the Rust subscriber examples against a fusion node and camera
+# nodes (.ci/zenoh_python.sh, eclipse-zenoh in a venv).
 # Runs after .ci/video.sh and .ci/genicam.sh (their system packages are installed).
 # Non-interactive, run as root (CI).
 set -euo pipefail
@@ -22,9 +24,14 @@ timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$feat
 echo "== zenoh: clippy (the binary and rodtrack-zenoh with every feature, -D warnings)"
 cargo clippy --release -p rodtrack -p rodtrack-zenoh --features "$features" --all-targets -- -D warnings
 
-echo "== zenoh: the binary with every feature"
-cargo build --release -p rodtrack --features video,genicam,zenoh
-target/release/rodtrack fuse --help | head -3
+echo "== zenoh: the binary with every feature, and the Rust subscriber example"
+cargo build --release -p rodtrack -p rodtrack-zenoh --features "$features" \
+    --bin rodtrack --example fused_subscriber
+bin="${CARGO_TARGET_DIR:-target}/release/rodtrack"
+"$bin" fuse --help | head -3
 
-echo "== zenoh: the Python subscriber example (eclipse-zenoh) against real nodes (loopback)"
+echo "== zenoh: latency across processes (bench-zenoh: 2 camera nodes and a fusion node, 3 s)"
+timeout 180 "$bin" bench-zenoh --frames 600
+
+echo "== zenoh: the Python and Rust subscriber examples against real nodes (loopback)"
 timeout 300 bash .ci/zenoh_python.sh

@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
-# The Python subscriber example (python/examples/zenoh_subscriber.py, `eclipse-zenoh` from
-# PyPI in a venv) against real nodes on loopback: a fusion node listening on an explicit
-# tcp/127.0.0.1 endpoint and two camera nodes on real-time sim:// sources connecting to it,
-# multicast scouting off. The subscriber runs for a bounded time; its output must hold every
-# rod, finite positions and increasing frame ids. Uses the release binary built with the
-# feature `zenoh` (RODTRACK_BIN, default target/release/rodtrack); started by .ci/zenoh.sh.
+# The subscriber examples against real nodes on loopback: the Python one
+# (python/examples/zenoh_subscriber.py, `eclipse-zenoh` from PyPI in a venv) and the Rust one
+# (rodtrack-zenoh's example `fused_subscriber`, through the crate), side by side, against a
+# fusion node listening on an explicit tcp/127.0.0.1 endpoint and two camera nodes on
+# real-time sim:// sources connecting to it, multicast scouting off. The subscribers run for a
+# bounded time; each one's output must hold every rod, finite positions and increasing frame
+# ids. Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
+# target/release/rodtrack) and the example built beside it (RODTRACK_EXAMPLE, default
+# target/release/examples/fused_subscriber); started by .ci/zenoh.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target="${CARGO_TARGET_DIR:-$PWD/target}"
 bin="${RODTRACK_BIN:-$target/release/rodtrack}"
+example="${RODTRACK_EXAMPLE:-$target/release/examples/fused_subscriber}"
 venv="$target/ci-zenoh-venv"
 
 source .ci/packages.sh
@@ -42,13 +46,18 @@ for cam in 0 1; do
   pids+=($!)
 done
 
-logs() { tail -n 5 "$tmp/sub.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
+logs() { tail -n 5 "$tmp/sub.txt" "$tmp/sub_rs.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
+timeout 30 "$example" "$endpoint" 8 >"$tmp/sub_rs.txt" 2>&1 &
+rust_sub=$!
 timeout 30 "$venv/bin/python" python/examples/zenoh_subscriber.py "$endpoint" 8 >"$tmp/sub.txt" \
-  || { echo "the subscriber failed"; logs; exit 1; }
+  || { echo "the Python subscriber failed"; logs; exit 1; }
+wait "$rust_sub" || { echo "the Rust subscriber failed"; logs; exit 1; }
 
-"$venv/bin/python" - "$tmp/sub.txt" <<'PY' || { logs; exit 1; }
+for who in python:sub.txt rust:sub_rs.txt; do
+"$venv/bin/python" - "${who%%:*}" "$tmp/${who#*:}" <<'PY' || { logs; exit 1; }
 import math, sys
-lines = [l.split() for l in open(sys.argv[1]) if l.startswith("frame ")]
+who = sys.argv[1]
+lines = [l.split() for l in open(sys.argv[2]) if l.startswith("frame ")]
 rows = [dict(zip(l[0::2], l[1::2])) for l in lines]
 assert len(rows) >= 200, f"only {len(rows)} rows received"
 rods = sorted({int(r["rod"]) for r in rows})
@@ -57,5 +66,6 @@ assert all(math.isfinite(float(r["position_mm"])) and math.isfinite(float(r["tur
 frames = [int(r["frame"]) for r in rows]
 assert all(b >= a for a, b in zip(frames, frames[1:])), "frame ids must not decrease"
 assert len(set(frames)) >= 50, f"{len(set(frames))} frames"
-print(f"python subscriber: {len(rows)} fused rows of {len(set(frames))} frames, rods {rods[0]}..{rods[-1]}, positions finite, frame ids increasing")
+print(f"{who} subscriber: {len(rows)} fused rows of {len(set(frames))} frames, rods {rods[0]}..{rods[-1]}, positions finite, frame ids increasing")
 PY
+done

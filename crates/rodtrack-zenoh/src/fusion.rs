@@ -32,6 +32,9 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 
+mod status;
+use status::status_json;
+
 /// How frames of the cameras are matched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SetGrouping {
@@ -124,6 +127,9 @@ struct CameraWatch {
     frames_missed: AtomicU64,
     /// Messages refused (bad layout, wrong camera) or dropped (queue full).
     refused: AtomicU64,
+    /// Taken back behind the others: its frames resume after this grouping key, plus 1
+    /// (0: none), as the sets up to it may be written already.
+    resume_after_plus_1: AtomicU64,
 }
 
 impl CameraWatch {
@@ -241,21 +247,25 @@ impl RowSource {
         }
     }
 
-    /// Takes a message back from a camera that was lost or ended: only once it is newer than
-    /// the sets already written (or so far behind, over 2 s, that its clock or counter was
-    /// reset). Returns whether the message is taken.
+    /// Takes back a camera that was lost or ended, at its first message. A message newer
+    /// than the others' newest frame (or so far behind, over 2 s, that its clock or counter
+    /// was reset) is taken. One behind it is dropped, its set possibly written already: the
+    /// camera's frames resume after the others' newest frame (read once the sets wait for
+    /// this camera again), so that a camera whose frames come a little after the others'
+    /// is not kept out. Returns whether the message is taken.
     fn take_back(&self, m: &Message) -> bool {
         let me = &self.watch.cameras[self.pos];
         let key = self.key(&m.header);
-        if let Some(newest) = self.watch.newest_other_key(self.pos) {
-            let two_s = match self.grouping {
-                SetGrouping::FrameId => (2.0 * self.fps) as u64,
-                SetGrouping::Timestamp => 2_000_000_000,
-            };
-            if key <= newest && newest - key <= two_s {
-                return false;
-            }
-        }
+        let two_s = match self.grouping {
+            SetGrouping::FrameId => (2.0 * self.fps) as u64,
+            SetGrouping::Timestamp => 2_000_000_000,
+        };
+        let slack = self.watch.key_slack;
+        let behind = |newest: u64| {
+            let newest = newest.saturating_add(slack);
+            key <= newest && newest - key <= two_s
+        };
+        let was_behind = self.watch.newest_other_key(self.pos).is_some_and(behind);
         let was = me.state();
         let missed = m
             .header
@@ -268,6 +278,12 @@ impl RowSource {
         me.returns.fetch_add(1, Ordering::Relaxed);
         me.set_state(CameraState::Ok);
         self.watch.set_absent(self.pos, false);
+        if was_behind {
+            let newest = self.watch.newest_other_key(self.pos).unwrap_or(key);
+            let resume = newest.saturating_add(slack).max(key);
+            me.resume_after_plus_1.store(resume + 1, Ordering::SeqCst);
+            me.frames_missed.fetch_add(1, Ordering::Relaxed);
+        }
         (self.watch.log)(&format!(
             "fusion: camera {} ({}) back at frame {} after being {} ({} frame(s) missed); frame sets are complete again",
             me.index,
@@ -276,7 +292,7 @@ impl RowSource {
             was.name(),
             missed
         ));
-        true
+        !was_behind
     }
 }
 
@@ -332,7 +348,12 @@ impl FrameSource for RowSource {
                     }
                 }
                 CameraState::Waiting => me.set_state(CameraState::Ok),
-                CameraState::Ok => {}
+                CameraState::Ok => {
+                    if self.key(&m.header) < me.resume_after_plus_1.load(Ordering::SeqCst) {
+                        me.frames_missed.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
+                }
             }
             me.last_key.store(self.key(&m.header), Ordering::Relaxed);
             me.last_frame.store(m.header.frame, Ordering::Relaxed);
@@ -360,6 +381,8 @@ struct FusedSink<S> {
     publisher: Option<RowPublisher>,
     set: Arc<Mutex<SetState>>,
     fused: Vec<Measurement>,
+    rows_published: u64,
+    sets_published: u64,
     publish_errors: u64,
     first_publish_error: Option<String>,
 }
@@ -373,9 +396,15 @@ impl<S: MeasurementSink> MeasurementSink for FusedSink<S> {
                 .extend(rows.iter().filter(|m| m.camera == CameraId::Fused));
             if !self.fused.is_empty() {
                 let s = *self.set.lock().unwrap_or_else(|e| e.into_inner());
-                if let Err(e) = p.publish_runs(Kind::Fused, s.complete, s.cameras, &self.fused) {
-                    self.publish_errors += 1;
-                    self.first_publish_error.get_or_insert(e.to_string());
+                match p.publish_runs(Kind::Fused, s.complete, s.cameras, &self.fused) {
+                    Ok(()) => {
+                        self.rows_published += self.fused.len() as u64;
+                        self.sets_published += 1;
+                    }
+                    Err(e) => {
+                        self.publish_errors += 1;
+                        self.first_publish_error.get_or_insert(e.to_string());
+                    }
                 }
             }
         }
@@ -394,6 +423,10 @@ pub struct FusionReport {
     /// Per camera: name, state at the end, times lost, times taken back, frames missed while
     /// lost, messages refused.
     pub cameras: Vec<CameraSummary>,
+    /// Fused rows published, and the frame sets they belong to.
+    pub rows_published: u64,
+    /// Frame sets whose fused rows were published.
+    pub sets_published: u64,
     /// Fused messages that could not be published, and the first error.
     pub publish_errors: u64,
     /// The first publishing error.
@@ -438,6 +471,13 @@ impl std::fmt::Display for FusionReport {
                 c.returns,
                 c.frames_missed,
                 c.refused
+            )?;
+        }
+        if self.sets_published > 0 || self.publish_errors > 0 {
+            writeln!(
+                f,
+                "  published: {} fused rows of {} frame sets",
+                self.rows_published, self.sets_published
             )?;
         }
         if self.publish_errors > 0 {
@@ -516,6 +556,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
                 returns: AtomicU64::new(0),
                 frames_missed: AtomicU64::new(0),
                 refused: AtomicU64::new(0),
+                resume_after_plus_1: AtomicU64::new(0),
             })
             .collect(),
         first_any_ns: AtomicU64::new(0),
@@ -695,6 +736,8 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         publisher,
         set,
         fused: Vec::with_capacity(64),
+        rows_published: 0,
+        sets_published: 0,
         publish_errors: 0,
         first_publish_error: None,
     });
@@ -720,41 +763,11 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         FusionReport {
             pipeline: report,
             cameras,
+            rows_published: sink.rows_published,
+            sets_published: sink.sets_published,
             publish_errors: sink.publish_errors,
             first_publish_error: sink.first_publish_error,
         },
         sink.inner,
     ))
-}
-
-/// The fusion node's status message.
-fn status_json(table: &str, w: &Watch, c: &PipelineCounters) -> String {
-    let cameras: Vec<serde_json::Value> = w
-        .cameras
-        .iter()
-        .enumerate()
-        .map(|(pos, cam)| {
-            serde_json::json!({
-                "index": cam.index,
-                "name": cam.name,
-                "state": cam.state().name(),
-                "frame": cam.last_frame.load(Ordering::Relaxed),
-                "losses": cam.losses.load(Ordering::Relaxed),
-                "returns": cam.returns.load(Ordering::Relaxed),
-                "frames_missed": cam.frames_missed.load(Ordering::Relaxed),
-                "refused": cam.refused.load(Ordering::Relaxed),
-                "missing_in_sets": c.cameras.get(pos).map_or(0, |x| x.missing_in_sets.load(Ordering::Relaxed)),
-            })
-        })
-        .collect();
-    serde_json::json!({
-        "version": crate::layout::VERSION,
-        "table": table,
-        "sets_complete": c.sets_complete.load(Ordering::Relaxed),
-        "sets_incomplete": c.sets_incomplete.load(Ordering::Relaxed),
-        "rows_written": c.rows_written.load(Ordering::Relaxed),
-        "uptime_s": w.started.elapsed().as_secs_f64(),
-        "cameras": cameras,
-    })
-    .to_string()
 }

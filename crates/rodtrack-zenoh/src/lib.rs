@@ -23,7 +23,9 @@
 //! - `camera`: a camera node (a sink and hooks for an SDK `Session`);
 //! - `fusion`: the fusion node (the runtime pipeline over the cameras' messages, with the
 //!   same filters and fusion as an in-process session);
-//! - `replay`: an MCAP recording's rows published again in real time, on the same keys.
+//! - `replay`: an MCAP recording's rows published again in real time, on the same keys;
+//! - `subscriber`: a program's subscriber to the rows (the fused rows of a table), decoded
+//!   (the example `fused_subscriber` prints each rod's fused position through it).
 
 #[cfg(feature = "zenoh")]
 pub mod camera;
@@ -37,6 +39,8 @@ pub mod layout;
 pub mod net;
 #[cfg(feature = "zenoh")]
 pub mod replay;
+#[cfg(feature = "zenoh")]
+pub mod subscriber;
 
 #[cfg(feature = "zenoh")]
 pub use error::ZenohError;

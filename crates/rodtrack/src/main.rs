@@ -2,6 +2,8 @@
 
 mod bench_frames;
 mod bench_latency;
+#[cfg(feature = "zenoh")]
+mod bench_zenoh;
 mod calibrate;
 mod choices;
 mod console;
@@ -53,6 +55,10 @@ enum Command {
     Score(score::Args),
     /// Latency of the live path on the real-time simulator (frame available to row written).
     BenchLatency(bench_latency::Args),
+    /// Latency of the camera network across processes on loopback (camera frame to fused row
+    /// received; feature `zenoh`).
+    #[cfg(feature = "zenoh")]
+    BenchZenoh(bench_zenoh::Args),
     /// Fusion node of a camera network: fuse the camera nodes' rows (docs/network.md).
     Fuse(fuse::Args),
     /// Play an MCAP recording's rows back on the camera network in real time.
@@ -95,6 +101,8 @@ fn main() {
         Command::Evaluate(a) => evaluate::run(a),
         Command::BenchFrames(a) => bench_frames::run(a),
         Command::BenchLatency(a) => bench_latency::run(a),
+        #[cfg(feature = "zenoh")]
+        Command::BenchZenoh(a) => bench_zenoh::run(a),
         Command::Fuse(a) => fuse::run(a),
         Command::Replay(a) => replay::run(a),
     };
