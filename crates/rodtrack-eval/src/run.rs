@@ -214,7 +214,7 @@ fn run_scenario(
             paper: true,
             hooks: None,
             on_rows: Some(on_rows),
-            events: None,
+            ball: None,
         },
     )?;
     let mut rows = ScenarioRows::default();

@@ -26,10 +26,10 @@ pub struct SimRun<'a> {
     /// latest progress.
     pub on_rows: Option<RowsCallback>,
     /// Also the ball and its events ([`Session::with_ball`], [`Session::with_events`]).
-    pub events: Option<BallRun<'a>>,
+    pub ball: Option<BallRun<'a>>,
 }
 
-/// See [`SimRun::events`].
+/// See [`SimRun::ball`].
 pub struct BallRun<'a> {
     /// The calibration with the cameras' table frame and ball.
     pub cal: &'a CalibrationFile,
@@ -200,7 +200,7 @@ pub fn run_sim(cals: &[CameraCalibration], run: SimRun<'_>) -> Result<(SimRows, 
         on_rows: run.on_rows,
     };
     let mut session = Session::from_cameras(cameras, options).with_hooks(hooked.clone());
-    if let Some(b) = run.events {
+    if let Some(b) = run.ball {
         session =
             session
                 .with_ball(b.cal, b.rows)?

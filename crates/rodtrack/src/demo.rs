@@ -123,7 +123,7 @@ pub fn run(args: Args) -> Result<()> {
             paper: true,
             hooks,
             on_rows: Some(on_rows),
-            events: ball_cal.as_ref().map(|cal| {
+            ball: ball_cal.as_ref().map(|cal| {
                 // The ball's rows and events to the console too (its top view, the score).
                 let mut events = rodtrack_io::EventMultiSink::new();
                 events.push(Box::new(found_events.clone()));
