@@ -12,8 +12,9 @@
 //! [`FusionOptions::loss_periods`] frame periods: it is reported (stderr through the `log`
 //! callback, and `.../fused/status`), and the frame sets go on without waiting for it, marked
 //! incomplete (the fused messages' `complete` flag and camera mask). When its messages come
-//! back it is taken back from the first frame set not yet written. A camera node that ends its
-//! run says so (`end`), and is not waited for either.
+//! back it is taken back; its frames whose sets went out without it are written on their own,
+//! not fused again. A camera node that ends its run says so (`end`), and is not waited for
+//! either.
 
 use crate::layout::{camera_bit, decode, Header, Kind, Message};
 use crate::net::{camera_key, fused_key, NetworkOptions, RowPublisher, WireFormat};
@@ -21,8 +22,7 @@ use crate::ZenohError;
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_core::{CameraFilter, CameraId, Measurement, Mode, PixelFormat, SetFusion};
 use rodtrack_io::runtime::{
-    Grouping, Handoff, Pipeline, PipelineConfig, PipelineCounters, PipelineReport, RunMode,
-    WriteMode,
+    Grouping, Handoff, Pipeline, PipelineConfig, PipelineReport, RunMode, WriteMode,
 };
 use rodtrack_io::source::SourceInfo;
 use rodtrack_io::{FrameBuffer, FrameSource, IoError, MeasurementSink, SourceError};
@@ -33,7 +33,10 @@ use std::time::{Duration, Instant};
 use zenoh::Wait;
 
 mod status;
+mod watch;
 use status::status_json;
+pub use watch::CameraState;
+use watch::{CameraWatch, Watch};
 
 /// How frames of the cameras are matched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -69,162 +72,6 @@ impl Default for FusionOptions {
     }
 }
 
-/// A camera's state at the fusion node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CameraState {
-    /// No message yet.
-    Waiting,
-    /// Sending.
-    Ok,
-    /// Silent while others send: sets go on without it.
-    Lost,
-    /// Its node ended its run.
-    Ended,
-}
-
-impl CameraState {
-    fn code(self) -> u8 {
-        match self {
-            CameraState::Waiting => 0,
-            CameraState::Ok => 1,
-            CameraState::Lost => 2,
-            CameraState::Ended => 3,
-        }
-    }
-    fn from_code(c: u8) -> CameraState {
-        match c {
-            1 => CameraState::Ok,
-            2 => CameraState::Lost,
-            3 => CameraState::Ended,
-            _ => CameraState::Waiting,
-        }
-    }
-    /// `waiting`, `ok`, `lost`, `ended`.
-    pub fn name(self) -> &'static str {
-        match self {
-            CameraState::Waiting => "waiting",
-            CameraState::Ok => "ok",
-            CameraState::Lost => "lost",
-            CameraState::Ended => "ended",
-        }
-    }
-}
-
-/// What the fusion node knows of one camera.
-#[derive(Debug)]
-struct CameraWatch {
-    name: String,
-    index: u32,
-    state: AtomicU8,
-    /// ns since the node started of its last message (0: none yet).
-    last_seen_ns: AtomicU64,
-    /// The grouping key (frame id or timestamp) of its last frame taken.
-    last_key: AtomicU64,
-    last_frame: AtomicU64,
-    losses: AtomicU64,
-    returns: AtomicU64,
-    /// Frames it did not deliver while lost (frame-id grouping).
-    frames_missed: AtomicU64,
-    /// Messages refused (bad layout, wrong camera) or dropped (queue full).
-    refused: AtomicU64,
-    /// Taken back behind the others: its frames resume after this grouping key, plus 1
-    /// (0: none), as the sets up to it may be written already.
-    resume_after_plus_1: AtomicU64,
-}
-
-impl CameraWatch {
-    fn state(&self) -> CameraState {
-        CameraState::from_code(self.state.load(Ordering::Relaxed))
-    }
-    fn set_state(&self, s: CameraState) {
-        self.state.store(s.code(), Ordering::Relaxed);
-    }
-}
-
-/// What the node's threads share.
-struct Watch {
-    started: Instant,
-    cameras: Vec<CameraWatch>,
-    /// ns since start of the first message of any camera (0: none yet).
-    first_any_ns: AtomicU64,
-    loss_ns: u64,
-    period_ns: u64,
-    /// How far another camera's grouping key must be past a camera's last one to count as a
-    /// newer frame: 0 by frame id, half a period by timestamp (the same frame's window).
-    key_slack: u64,
-    log: Box<dyn Fn(&str) + Send + Sync>,
-    counters: OnceLock<Arc<PipelineCounters>>,
-}
-
-impl Watch {
-    fn now_ns(&self) -> u64 {
-        (self.started.elapsed().as_nanos() as u64).max(1)
-    }
-
-    fn set_absent(&self, pos: usize, absent: bool) {
-        if let Some(c) = self.counters.get().and_then(|c| c.cameras.get(pos)) {
-            c.absent.store(absent, Ordering::Relaxed);
-        }
-    }
-
-    /// Marks camera `pos` lost when it has been silent for the loss time while another
-    /// camera sent within it, frames newer than its own last one: the frame sets are then
-    /// waiting for it. (A camera whose run ends with the others', its `end` message still on
-    /// its way, is not lost: nobody has gone past its last frame.)
-    fn check_loss(&self, pos: usize) {
-        let me = &self.cameras[pos];
-        if !matches!(me.state(), CameraState::Ok | CameraState::Waiting) {
-            return;
-        }
-        let now = self.now_ns();
-        let first = self.first_any_ns.load(Ordering::Relaxed);
-        if first == 0 {
-            return;
-        }
-        let last = match me.last_seen_ns.load(Ordering::Relaxed) {
-            0 => first,
-            t => t,
-        };
-        let silent = now.saturating_sub(last);
-        if silent < self.loss_ns {
-            return;
-        }
-        let seen_any = me.last_seen_ns.load(Ordering::Relaxed) != 0;
-        let mine = me.last_key.load(Ordering::Relaxed);
-        let others = self.cameras.iter().enumerate().any(|(i, c)| {
-            i != pos
-                && c.state() == CameraState::Ok
-                && now.saturating_sub(c.last_seen_ns.load(Ordering::Relaxed)) < self.loss_ns
-                && (!seen_any
-                    || c.last_key.load(Ordering::Relaxed) > mine.saturating_add(self.key_slack))
-        });
-        if !others {
-            return;
-        }
-        me.set_state(CameraState::Lost);
-        me.losses.fetch_add(1, Ordering::Relaxed);
-        self.set_absent(pos, true);
-        (self.log)(&format!(
-            "fusion: camera {} ({}) lost: no rows for {:.1} ms ({:.1} frame periods) after frame {}; frame sets go on without it, marked incomplete",
-            me.index,
-            me.name,
-            silent as f64 * 1e-6,
-            silent as f64 / self.period_ns as f64,
-            me.last_frame.load(Ordering::Relaxed)
-        ));
-    }
-
-    /// The newest grouping key another camera delivered.
-    fn newest_other_key(&self, pos: usize) -> Option<u64> {
-        self.cameras
-            .iter()
-            .enumerate()
-            .filter(|(i, c)| *i != pos && c.last_seen_ns.load(Ordering::Relaxed) != 0)
-            .map(|(_, c)| c.last_key.load(Ordering::Relaxed))
-            .max()
-    }
-}
-
 /// One camera's messages as a frame source of the pipeline: each message a 1x1 "frame" with
 /// its frame id and timestamp, its rows left in `slot` for the processing stage (run right
 /// after in the same thread, [`Handoff::Inline`]).
@@ -247,25 +94,12 @@ impl RowSource {
         }
     }
 
-    /// Takes back a camera that was lost or ended, at its first message. A message newer
-    /// than the others' newest frame (or so far behind, over 2 s, that its clock or counter
-    /// was reset) is taken. One behind it is dropped, its set possibly written already: the
-    /// camera's frames resume after the others' newest frame (read once the sets wait for
-    /// this camera again), so that a camera whose frames come a little after the others'
-    /// is not kept out. Returns whether the message is taken.
-    fn take_back(&self, m: &Message) -> bool {
+    /// Takes back a camera that was lost or ended, at its first message. Its frames are
+    /// taken from there on: one whose frame set was written while it was away goes out on its
+    /// own (its rows written, not fused: the set's fused rows are out already), so no row of
+    /// a camera that was slow rather than gone is lost.
+    fn take_back(&self, m: &Message) {
         let me = &self.watch.cameras[self.pos];
-        let key = self.key(&m.header);
-        let two_s = match self.grouping {
-            SetGrouping::FrameId => (2.0 * self.fps) as u64,
-            SetGrouping::Timestamp => 2_000_000_000,
-        };
-        let slack = self.watch.key_slack;
-        let behind = |newest: u64| {
-            let newest = newest.saturating_add(slack);
-            key <= newest && newest - key <= two_s
-        };
-        let was_behind = self.watch.newest_other_key(self.pos).is_some_and(behind);
         let was = me.state();
         let missed = m
             .header
@@ -278,12 +112,6 @@ impl RowSource {
         me.returns.fetch_add(1, Ordering::Relaxed);
         me.set_state(CameraState::Ok);
         self.watch.set_absent(self.pos, false);
-        if was_behind {
-            let newest = self.watch.newest_other_key(self.pos).unwrap_or(key);
-            let resume = newest.saturating_add(slack).max(key);
-            me.resume_after_plus_1.store(resume + 1, Ordering::SeqCst);
-            me.frames_missed.fetch_add(1, Ordering::Relaxed);
-        }
         (self.watch.log)(&format!(
             "fusion: camera {} ({}) back at frame {} after being {} ({} frame(s) missed); frame sets are complete again",
             me.index,
@@ -292,7 +120,6 @@ impl RowSource {
             was.name(),
             missed
         ));
-        !was_behind
     }
 }
 
@@ -325,11 +152,7 @@ impl FrameSource for RowSource {
             };
             let w = &self.watch;
             let me = &w.cameras[self.pos];
-            let now = w.now_ns();
-            let _ = w
-                .first_any_ns
-                .compare_exchange(0, now, Ordering::Relaxed, Ordering::Relaxed);
-            me.last_seen_ns.store(now, Ordering::Relaxed);
+            w.heard(self.pos, w.now_ns());
             if m.header.kind == Kind::End {
                 if me.state() != CameraState::Ended {
                     me.set_state(CameraState::Ended);
@@ -342,18 +165,9 @@ impl FrameSource for RowSource {
                 continue;
             }
             match me.state() {
-                CameraState::Lost | CameraState::Ended => {
-                    if !self.take_back(&m) {
-                        continue;
-                    }
-                }
+                CameraState::Lost | CameraState::Ended => self.take_back(&m),
                 CameraState::Waiting => me.set_state(CameraState::Ok),
-                CameraState::Ok => {
-                    if self.key(&m.header) < me.resume_after_plus_1.load(Ordering::SeqCst) {
-                        me.frames_missed.fetch_add(1, Ordering::Relaxed);
-                        continue;
-                    }
-                }
+                CameraState::Ok => {}
             }
             me.last_key.store(self.key(&m.header), Ordering::Relaxed);
             me.last_frame.store(m.header.frame, Ordering::Relaxed);
@@ -556,7 +370,8 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
                 returns: AtomicU64::new(0),
                 frames_missed: AtomicU64::new(0),
                 refused: AtomicU64::new(0),
-                resume_after_plus_1: AtomicU64::new(0),
+                behind_since_ns: AtomicU64::new(0),
+                awake_ns: AtomicU64::new(0),
             })
             .collect(),
         first_any_ns: AtomicU64::new(0),

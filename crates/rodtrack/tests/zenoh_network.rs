@@ -370,10 +370,26 @@ fn a_camera_node_killed_mid_run_is_reported_and_taken_back() {
     std::thread::sleep(Duration::from_millis(300));
     let log = fusion.interrupt(Duration::from_secs(10));
 
-    // The loss: noticed within 3 frame periods, reported, then the node taken back.
-    let lost = log
+    // The loss: noticed within 3 frame periods, reported, then the node taken back. (The
+    // kill comes about 300 frames into the run; a node that fell over a period behind its
+    // peer earlier, on a loaded machine, may have been lost and taken back before: printed.)
+    let after_frame = |l: &str| -> u64 {
+        l.split("after frame ")
+            .nth(1)
+            .and_then(|s| s.split(';').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("{l}"))
+    };
+    let losses: Vec<&str> = log
         .lines()
-        .find(|l| l.contains("camera 1 (cam1) lost"))
+        .filter(|l| l.contains("camera 1 (cam1) lost"))
+        .collect();
+    for l in losses.iter().filter(|l| after_frame(l) < 250) {
+        eprintln!("before the kill: {l}");
+    }
+    let lost = *losses
+        .iter()
+        .find(|l| after_frame(l) >= 250)
         .unwrap_or_else(|| panic!("no loss reported:\n{log}"));
     let periods: f64 = lost
         .split(" ms (")
@@ -387,6 +403,7 @@ fn a_camera_node_killed_mid_run_is_reported_and_taken_back() {
     );
     let back_line = log
         .lines()
+        .skip_while(|l| *l != lost)
         .find(|l| l.contains("camera 1 (cam1) back at frame"))
         .unwrap_or_else(|| panic!("not taken back:\n{log}"));
     let back_frame: u64 = back_line
@@ -409,6 +426,10 @@ fn a_camera_node_killed_mid_run_is_reported_and_taken_back() {
     let rods0 = *per_frame.get(&("0".to_string(), 0)).unwrap_or_else(|| {
         panic!("no row of camera 0 at frame 0 (did it start after the trigger?):\n{log}")
     });
+    // The cameras in each frame set, as published.
+    let seen = seen.lock().unwrap();
+    let masks: BTreeMap<u64, u64> = seen.iter().map(|s| (s.0, s.2)).collect();
+    let cam0_lost = log.contains("camera 0 (cam0) lost");
     for frame in 0..FRAMES {
         assert_eq!(
             per_frame.get(&("0".into(), frame)),
@@ -416,21 +437,30 @@ fn a_camera_node_killed_mid_run_is_reported_and_taken_back() {
             "camera 0, frame {frame}"
         );
         // Every rod camera 0 sees is fused, whether or not camera 1 is there (the rod only
-        // camera 1 sees has no fused row while it is away, as in-process).
+        // camera 1 sees has no fused row while it is away, as in-process). A set that went
+        // out without camera 0 (it was late by over the loss time on a loaded machine:
+        // reported lost, its rows written after the set) has camera 1's.
         let fused = per_frame.get(&("fused".into(), frame)).copied();
+        let with0 = masks.get(&frame).is_none_or(|m| m & 1 == 1);
         assert!(
-            fused >= Some(rods0) && fused <= Some(8),
+            with0 || cam0_lost,
+            "frame {frame}: a set without camera 0, never reported lost"
+        );
+        let least = if with0 { rods0 } else { 1 };
+        assert!(
+            fused >= Some(least) && fused <= Some(8),
             "fused, frame {frame}: {fused:?}"
         );
     }
 
     // On the network: sets without camera 1 marked incomplete, complete again after the return.
-    let seen = seen.lock().unwrap();
     let incomplete: Vec<_> = seen.iter().filter(|s| !s.1 && s.0 < FRAMES).collect();
     assert!(!incomplete.is_empty());
     assert!(
-        incomplete.iter().all(|s| s.2 == 0b01),
-        "camera 0 alone in incomplete sets"
+        incomplete
+            .iter()
+            .all(|s| s.2 == 0b01 || (cam0_lost && s.2 == 0b10)),
+        "one camera alone in incomplete sets"
     );
     assert!(
         seen.iter().any(|s| s.0 > back_frame && s.1 && s.2 == 0b11),

@@ -227,8 +227,12 @@ impl Grouper {
         };
         self.pending[i].parts[camera] = Some(part);
         if late {
-            // Its set was already emitted: write this frame on its own.
-            self.emit_key(key, sink);
+            // Its set was already emitted, with its fused rows: write this frame's rows on
+            // their own, not fused again.
+            self.counters.cameras[camera]
+                .frames_late
+                .fetch_add(1, Ordering::Relaxed);
+            self.emit_key(key, true, sink);
         }
     }
 
@@ -253,7 +257,7 @@ impl Grouper {
                 break;
             }
             let key = p.key;
-            self.emit_key(key, sink);
+            self.emit_key(key, false, sink);
         }
     }
 
@@ -264,11 +268,13 @@ impl Grouper {
                 break;
             }
             let k = p.key;
-            self.emit_key(k, sink);
+            self.emit_key(k, false, sink);
         }
     }
 
-    fn emit_key(&mut self, key: u64, sink: &mut dyn MeasurementSink) {
+    /// Writes the set of `key` (`late`: one camera's frame whose set was written already:
+    /// its rows only, no fusion, not counted as a set).
+    fn emit_key(&mut self, key: u64, late: bool, sink: &mut dyn MeasurementSink) {
         let Some(mut p) = self.index_of(key).and_then(|i| self.pending.remove(i)) else {
             return;
         };
@@ -284,6 +290,7 @@ impl Grouper {
                         self.out.extend_from_slice(part.output());
                     }
                 }
+                None if late => {}
                 None => {
                     complete = false;
                     self.counters.cameras[c]
@@ -292,14 +299,16 @@ impl Grouper {
                 }
             }
         }
-        if complete {
+        if late {
+            // Not a set.
+        } else if complete {
             self.counters.sets_complete.fetch_add(1, Ordering::Relaxed);
         } else {
             self.counters
                 .sets_incomplete
                 .fetch_add(1, Ordering::Relaxed);
         }
-        if let Some(fusion) = self.fusion.as_mut() {
+        if let Some(fusion) = self.fusion.as_mut().filter(|_| !late) {
             let first = p.parts.iter().flatten().next().map(|part| part.meta);
             self.info.frame_id = first.map_or(key, |m| m.frame_id);
             self.info.timestamp_ns = first.map_or(Timestamp(0), |m| m.timestamp_ns);

@@ -498,6 +498,7 @@ impl Threads {
                     frames_skipped: c.frames_skipped.load(Ordering::Relaxed),
                     bad_frames: c.bad_frames.load(Ordering::Relaxed),
                     missing_in_sets: c.missing_in_sets.load(Ordering::Relaxed),
+                    frames_late: c.frames_late.load(Ordering::Relaxed),
                     buffers_allocated: self.pools.get(i).map_or(0, BufferPool::created),
                     errors: self
                         .errors

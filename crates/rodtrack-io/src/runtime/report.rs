@@ -36,6 +36,9 @@ pub struct CameraCounters {
     pub bad_frames: AtomicU64,
     /// Frame sets emitted without this camera's frame.
     pub missing_in_sets: AtomicU64,
+    /// Frames that came after their frame set was written: their rows written on their own,
+    /// not fused (the set's fused rows are out already).
+    pub frames_late: AtomicU64,
     /// Set by the caller while the camera is known to be away (e.g. a network node that
     /// stopped sending): frame sets do not wait for its frames, as if it had ended, until it
     /// is cleared.
@@ -75,6 +78,8 @@ pub struct CameraStats {
     pub bad_frames: u64,
     /// Sets emitted without this camera.
     pub missing_in_sets: u64,
+    /// Frames that came after their set was written: written on their own, not fused.
+    pub frames_late: u64,
     /// Frame buffers the camera's pool allocated (bounded by the queue depth).
     pub buffers_allocated: usize,
     /// The first error messages (bad frames, a failed source, a panicked stage), at most 16.
@@ -136,6 +141,9 @@ impl std::fmt::Display for PipelineReport {
             )?;
             if c.frames_skipped > 0 {
                 write!(f, ", {} skipped by the source", c.frames_skipped)?;
+            }
+            if c.frames_late > 0 {
+                write!(f, ", {} late (written, not fused)", c.frames_late)?;
             }
             writeln!(f)?;
             for e in &c.errors {
