@@ -156,9 +156,9 @@ fn ball_rolling_at_up_to_2_m_s_is_measured_within_the_targets() {
             false_ok, 0,
             "camera {cam}: a position where no ball is visible"
         );
-        // The target is 0.99; what is met is guarded here, and reported in docs/ball.md.
+        // The target.
         assert!(
-            rate >= 0.9,
+            rate >= 0.99,
             "camera {cam}: detected on {rate:.3} of the half-visible frames"
         );
     }
@@ -357,4 +357,51 @@ fn fast_ball_detection_equals_the_plain_reference() {
         compared.1 > 100,
         "too few detections to compare: {compared:?}"
     );
+}
+
+/// A ball partly under a rod or a figure, at least half of it visible, is found by the
+/// detector on its own (the coarse scan, no prediction), at its place: the rays through the
+/// rod do not take the rod's far edge for the ball's (a grey rod's colour lies between the
+/// field's and the ball's on their axis; it is off the mixture line of the two colours).
+#[test]
+fn a_ball_half_hidden_by_a_rod_is_found_at_its_place() {
+    use rodtrack_core::ball::BallDetector;
+    use rodtrack_core::FrameView;
+    let seed = 3;
+    let frames = 240;
+    let mut sim = build_simulation("ball", Some(frames), seed, false, "default").unwrap();
+    for cam in 0..sim.cameras().len() {
+        let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
+        let mut det = BallDetector::new(&cal).unwrap().unwrap();
+        let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+        let (mut partly, mut found, mut missed) = (0usize, 0usize, Vec::new());
+        for f in 0..frames {
+            let t = sim.ball_truth(f).unwrap();
+            let vis = t.visible[cam];
+            if !(0.5..0.95).contains(&vis) {
+                continue;
+            }
+            let meta = sim.render(f, cam, &mut buf).unwrap();
+            let view =
+                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+            partly += 1;
+            match det.detect(&view, None) {
+                Some(d) if (d.x_mm - t.x_mm).hypot(d.y_mm - t.y_mm) <= 3.0 => found += 1,
+                other => missed.push((
+                    f,
+                    vis,
+                    other.map(|d| (d.x_mm - t.x_mm).hypot(d.y_mm - t.y_mm)),
+                )),
+            }
+        }
+        eprintln!("camera {cam}: {found} of {partly} partly hidden frames found within 3 mm; missed {missed:?}");
+        assert!(
+            partly >= 10,
+            "camera {cam}: the scenario hides the ball partly"
+        );
+        assert!(
+            found as f64 >= 0.99 * partly as f64,
+            "camera {cam}: found on {found} of {partly} frames; missed (frame, visible, error mm): {missed:?}"
+        );
+    }
 }

@@ -155,6 +155,10 @@ pub fn chroma(rgb: [f32; 3]) -> Option<[f32; 2]> {
 /// deviations of the spread calibration measured (a statistical bound, not a tuned value).
 pub const SPREAD_SIGMAS: f32 = 4.0;
 
+/// [`ColourModel::alpha`] of a sample that is no mixture of field and ball: an occluder (a
+/// rod, a figure, a hand) or the ball's highlight.
+pub const OFF_AXIS: f32 = -1.0e3;
+
 /// The ball's and the field's colours as calibration measured them, ready to classify quads.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColourModel {
@@ -163,6 +167,12 @@ pub struct ColourModel {
     ball_thr: f32,
     field_thr: f32,
     axis: [f32; 2],
+    /// Unit normal of the field -> ball line in chromaticity.
+    normal: [f32; 2],
+    /// How far from that line (chromaticity), and beyond its ends (in `alpha`), a mixture of
+    /// the two colours may fall: the larger of the two colours' spreads.
+    mix_thr: f32,
+    mix_alpha_thr: f32,
 }
 
 impl ColourModel {
@@ -181,12 +191,17 @@ impl ColourModel {
         if n2.is_nan() || n2 <= 0.0 {
             return None;
         }
+        let n = n2.sqrt();
+        let mix_thr = SPREAD_SIGMAS * ball_spread.max(field_spread) as f32;
         Some(ColourModel {
             ball: b,
             field: f,
             ball_thr: SPREAD_SIGMAS * ball_spread as f32,
             field_thr: SPREAD_SIGMAS * field_spread as f32,
             axis: [d[0] / n2, d[1] / n2],
+            normal: [-d[1] / n, d[0] / n],
+            mix_thr,
+            mix_alpha_thr: mix_thr / n,
         })
     }
 
@@ -219,12 +234,22 @@ impl ColourModel {
             && df < scaled_dist2(rgb, self.ball, s)
     }
 
-    /// Position of the sample along the field -> ball chromaticity axis (0 field, 1 ball).
+    /// Position of the sample along the field -> ball chromaticity axis (0 field, 1 ball), or
+    /// [`OFF_AXIS`] for a colour that is no mixture of the two (off their line, or beyond
+    /// its ends, by more than their spreads): a grey rod, say, whose chromaticity projects
+    /// between them. A black sample counts as field (a shadow).
     #[inline]
     pub fn alpha(&self, rgb: [f32; 3]) -> f32 {
         match chroma(rgb) {
             Some(c) => {
-                (c[0] - self.field[0]) * self.axis[0] + (c[1] - self.field[1]) * self.axis[1]
+                let (dx, dy) = (c[0] - self.field[0], c[1] - self.field[1]);
+                let a = dx * self.axis[0] + dy * self.axis[1];
+                let off = (dx * self.normal[0] + dy * self.normal[1]).abs();
+                if off > self.mix_thr || a < -self.mix_alpha_thr || a > 1.0 + self.mix_alpha_thr {
+                    OFF_AXIS
+                } else {
+                    a
+                }
             }
             None => 0.0,
         }
@@ -275,5 +300,12 @@ mod tests {
         assert!(m.is_field([50.0, 190.0, 60.0]));
         assert!((m.alpha([240.0, 150.0, 40.0]) - 1.0).abs() < 1e-4);
         assert!(m.alpha([25.0, 95.0, 30.0]).abs() < 1e-4);
+        // Half and half: on the line, halfway.
+        let mix = m.alpha([132.5, 122.5, 35.0]);
+        assert!(mix > 0.3 && mix < 0.7, "{mix}");
+        // Grey (a rod) projects between field and ball, but is no mixture of them; nor is a
+        // red figure, beyond the ball on the line.
+        assert_eq!(m.alpha([120.0, 120.0, 120.0]), OFF_AXIS);
+        assert_eq!(m.alpha([200.0, 30.0, 30.0]), OFF_AXIS);
     }
 }

@@ -2,7 +2,7 @@
 //! of the ball's expected size, its silhouette's edge points, and the sphere's centre fitted
 //! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
 
-use super::colour::{ColourModel, QuadLayout};
+use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS, N_RAYS,
     RESIDUAL_RATIO_MAX, WINDOW_RADII,
@@ -446,6 +446,9 @@ impl BallDetector {
                 [a(ix, iy), a(ix + 1, iy), a(ix, iy + 1), a(ix + 1, iy + 1)]
             }
         };
+        if [a00, a10, a01, a11].contains(&OFF_AXIS) {
+            return Some(OFF_AXIS);
+        }
         let top = a00 * (1.0 - fx) + a10 * fx;
         let bot = a01 * (1.0 - fx) + a11 * fx;
         Some(top * (1.0 - fy) + bot * fy)
@@ -526,14 +529,31 @@ impl BallDetector {
             let mut prev: Option<(f64, f32)> = None;
             let mut inside = false;
             let mut edge = None;
+            // Samples of the ball's colour since the last occluder (`None`: none crossed).
+            let mut since_occluder: Option<usize> = None;
             while t <= 1.8 * rq + 1.0 {
                 let (x, y) = (blob.cx_q + t * c, blob.cy_q + t * s);
                 let Some(a) = self.alpha_at(view, x, y) else {
                     break;
                 };
+                if a == OFF_AXIS {
+                    // An occluder or the highlight: no edge through it; one beyond it only
+                    // after more than a quad of the ball's colour again (not the colour
+                    // fringe along an occluder's border).
+                    prev = None;
+                    since_occluder = Some(0);
+                    t += dt;
+                    continue;
+                }
                 if a >= 0.5 {
                     inside = true;
+                    if let Some(n) = since_occluder.as_mut() {
+                        *n += 1;
+                    }
                 } else if inside {
+                    if since_occluder.is_some_and(|n| (n as f64) * dt <= 1.0) {
+                        break;
+                    }
                     if let Some((tp, ap)) = prev {
                         let te = tp + (ap as f64 - 0.5) / (ap - a).max(1e-6) as f64 * dt;
                         edge = Some(te);
