@@ -16,8 +16,8 @@ const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
 const PRERENDER: u32 = 20;
 /// From the nodes' start to the shared trigger's frame 0 (a loaded 2-core machine).
 const START_MS: u64 = 6000;
-/// Frames each camera node tracks (200 fps: 4 s).
-const FRAMES: u64 = 800;
+/// Frames each camera node tracks (200 fps: 6 s, time for several statuses while running).
+const FRAMES: u64 = 1200;
 /// The simulated cameras' frames, px, and the preview's (at most 360 px across, Bayer blocks
 /// of 4x4).
 const SOURCE_PX: (u64, u64) = (1440, 1080);
