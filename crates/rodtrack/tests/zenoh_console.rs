@@ -5,6 +5,7 @@
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
+use rodtrack_zenoh::zenoh::{self, Wait};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -381,7 +382,62 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
     );
     let fused = seen.node("fused").unwrap();
     assert_eq!(fused["silent"], false, "{fused}");
+
+    // Malformed messages: counted, shown and printed with their key expression; the console
+    // goes on.
+    let session = connect(&zc_ep);
+    let bad_preview = "rodtrack/default/cam/cam0/preview";
+    session
+        .put(bad_preview, &b"RTZP\x02\x00"[..])
+        .wait()
+        .unwrap();
+    session
+        .put("rodtrack/default/fused/status", "not json")
+        .wait()
+        .unwrap();
+    let two = |s: &Seen| s.remote["malformed"] == 2;
+    assert!(
+        read_until(&mut seen, Duration::from_secs(10), &two),
+        "malformed messages not counted: {}",
+        seen.remote
+    );
+    let errors = seen.remote["first_errors"].to_string();
+    assert!(
+        errors.contains(&format!("{bad_preview}: bad message: preview of 6 bytes"))
+            && errors.contains("rodtrack/default/fused/status: bad message: status JSON"),
+        "{errors}"
+    );
+    session.close().wait().unwrap();
+    read_until(&mut seen, Duration::from_millis(600), &|_| false);
+    assert!(seen.node("fused").is_some_and(|v| v["silent"] == false));
+
     fusion.interrupt(Duration::from_secs(10));
     let log = console.interrupt(Duration::from_secs(10));
-    assert!(!log.contains("malformed"), "{log}");
+    assert!(
+        log.contains(&format!(
+            "malformed message on {bad_preview}: bad message: preview of 6 bytes"
+        )),
+        "{log}"
+    );
+    assert!(log.contains("2 malformed message(s) received"), "{log}");
+}
+
+/// A zenoh session of the test's own, connected to `endpoint` (scouting off), once the peer
+/// is there and has told it its subscribers.
+fn connect(endpoint: &str) -> zenoh::Session {
+    let mut config = zenoh::Config::default();
+    config
+        .insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(config).wait().unwrap();
+    let until = Instant::now() + Duration::from_secs(10);
+    while session.info().peers_zid().wait().count() == 0 {
+        assert!(Instant::now() < until, "no zenoh peer at {endpoint}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    session
 }
