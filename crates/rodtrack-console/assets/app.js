@@ -318,10 +318,30 @@ function showStats(m) {
   } else {
     text = `cameras ${m.cameras.map((c) => c.index).join(', ') || 'none'}`;
   }
+  if (m.remote) text += remoteText(m.remote);
   $('stats').textContent = text;
   $('reanchor').hidden = !m.session;
   if (m.events) showEvents(m.events);
   rt.stats = m;
+}
+
+// The remote nodes of a camera network (`rodtrack console --subscribe zenoh`), a line each.
+function remoteText(r) {
+  let t = '';
+  for (const n of r.nodes) {
+    const s = n.status || {};
+    let line = `\n${n.node}: ${n.silent ? `SILENT ${n.age_s.toFixed(0)} s` : (s.state || 'running')}`;
+    if (Array.isArray(s.cameras)) {
+      line += `  sets complete ${s.sets_complete} incomplete ${s.sets_incomplete}  cameras ` +
+        s.cameras.map((c) => `${c.name} ${c.state}`).join(', ');
+    } else {
+      const fps = typeof s.frames_per_s === 'number' ? s.frames_per_s.toFixed(1) : '-';
+      line += `  frame ${s.frame ?? '-'}  ${fps} fps  dropped ${s.dropped ?? 0}  bad ${s.bad ?? 0}  publish errors ${s.publish_errors ?? 0}`;
+    }
+    t += line;
+  }
+  if (r.malformed > 0) t += `\nmalformed messages: ${r.malformed} (first: ${r.first_errors[0]})`;
+  return t;
 }
 
 // One event as a line of text (the `--events-out` object's fields).

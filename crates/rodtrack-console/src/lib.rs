@@ -57,6 +57,10 @@
 //! - [`ConsoleHandle::publish_ball`]`(&[BallRow])` (one frame set's rows per call, from the
 //!   session's ball sink) and [`ConsoleHandle::set_ball_field`]: the ball's position, speed
 //!   and trail on a top view of the field.
+//! - Remote nodes (a console fed from a camera network): [`ConsoleHandle::publish_preview`]
+//!   (a camera's preview image, shown as its live frame), [`ConsoleHandle::publish_node_status`]
+//!   (a node's status JSON, shown as silent after [`remote::SILENT_AFTER`] without one),
+//!   [`ConsoleHandle::note_malformed`] (a message that could not be used); see [`remote`].
 //! - [`ConsoleHandle::attach_session`]`(Arc<dyn SessionCommands>)`: the running session, for
 //!   the page's re-anchoring of a rod's turn count (see [`control`]).
 //! - HTTP: `/` (the page), `/ws` (live data), `/api/status`, `/api/calib` and its actions,
@@ -71,6 +75,7 @@ mod guard;
 pub mod image;
 pub mod overlay;
 mod poses;
+pub mod remote;
 pub(crate) mod rows;
 pub mod server;
 
@@ -288,6 +293,8 @@ pub(crate) struct Shared {
     pub events: Mutex<events::EventBoard>,
     /// The ball's last row and trail ([`ConsoleHandle::publish_ball`]).
     pub ball: Mutex<ball::BallBoard>,
+    /// Remote nodes' statuses and previews ([`ConsoleHandle::publish_node_status`]).
+    pub remote: Mutex<remote::RemoteBoard>,
 }
 
 impl Shared {
@@ -402,6 +409,7 @@ impl Console {
             session: Mutex::new(None),
             events: Mutex::new(events::EventBoard::default()),
             ball: Mutex::new(ball::BallBoard::default()),
+            remote: Mutex::new(remote::RemoteBoard::default()),
         });
         let guard = Arc::new(guard::GuardConfig {
             addr: local,
@@ -648,6 +656,76 @@ impl ConsoleHandle {
     /// set).
     pub fn set_ball_field(&self, length_mm: f64, width_mm: f64) {
         server::lock(&self.shared.ball).set_field(length_mm, width_mm);
+    }
+
+    /// Shows a remote camera's preview image (a small 8-bit grey or RGB image, 1 or 3
+    /// channels, of a frame `source_px` px in size) as the camera's live frame, and lists it
+    /// in the status's `remote.previews`. For a console fed from the network, a few times per
+    /// second: it copies the preview under the camera slot's lock (never call it from a
+    /// tracking thread; those use [`ConsoleHandle::publish_frame`]).
+    pub fn publish_preview(
+        &self,
+        camera: u32,
+        preview: &Preview,
+        source_px: (usize, usize),
+        frame_id: u64,
+        timestamp_s: f64,
+    ) -> Result<(), ConsoleError> {
+        let sh = &self.shared;
+        let c = camera as usize;
+        let Some(slot) = sh.cameras.get(c) else {
+            return Err(ConsoleError::Camera {
+                camera,
+                reason: format!("the console shows cameras 0 to {}", MAX_CAMERAS - 1),
+            });
+        };
+        let format = match preview.channels {
+            1 => rodtrack_core::PixelFormat::Mono8,
+            3 => rodtrack_core::PixelFormat::Rgb8,
+            n => {
+                return Err(ConsoleError::BadRequest {
+                    field: "preview",
+                    reason: format!("{n} channels (1 or 3)"),
+                })
+            }
+        };
+        let view = FrameView::new(
+            &preview.pixels,
+            preview.width,
+            preview.height,
+            preview.width * preview.channels,
+            format,
+        )?;
+        {
+            let mut live = server::lock(&slot.live);
+            live.raw.copy_from(&view, frame_id, timestamp_s);
+            live.decimation = (source_px.0 / preview.width.max(1)).max(1);
+            live.full_size = source_px;
+            live.overlays.clear();
+            live.seq += 1;
+        }
+        sh.counts.count(c);
+        server::lock(&sh.remote).preview(
+            camera,
+            frame_id,
+            (preview.width, preview.height),
+            preview.channels,
+            source_px,
+        );
+        Ok(())
+    }
+
+    /// Shows a remote node's latest status (`node`: its name, e.g. `cam/cam0` or `fused`;
+    /// `status`: its status message) in the status's `remote.nodes`; a node with no status
+    /// for [`remote::SILENT_AFTER`] is shown as silent.
+    pub fn publish_node_status(&self, node: &str, status: serde_json::Value) {
+        server::lock(&self.shared.remote).status(node, status);
+    }
+
+    /// Counts a message from the network that could not be used (`key`: where it came from);
+    /// the first ones are listed in the status's `remote.first_errors`.
+    pub fn note_malformed(&self, key: &str, error: &str) {
+        server::lock(&self.shared.remote).malformed(key, error);
     }
 
     /// Attaches the running tracking session: the page then offers to re-anchor a rod's turn

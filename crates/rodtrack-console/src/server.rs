@@ -4,7 +4,7 @@
 //! |---|---|
 //! | `GET /`, `/app.js`, `/style.css` | the page (embedded, no network) |
 //! | `GET /ws` | live data: text messages `{"t":"rows",...}` (each row `[t, camera, rod, position_mm, angle_unwrapped_rad, angle_rad, quality, status, turns_known]`), `{"t":"stats",...}` (the status, with the ball's `events`: `score`, `count`, `last`), `{"t":"ball",...}` (when the ball is tracked: `field_mm`, `frame`, `camera`, `status`, `x_mm`, `y_mm`, `speed_mm_s`, `trail` of the last second, `[x, y]` or `null` where lost); binary frames |
-//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead, the ball's score and last events (`events`), the ball's last row and trail (`ball`, as the live view's `ball` message; `null` before the first) |
+//! | `GET /api/status` | cameras seen, pipeline counters, publish overhead, the ball's score and last events (`events`), the ball's last row and trail (`ball`, as the live view's `ball` message; `null` before the first), remote nodes (`remote`: their statuses, previews, malformed messages, see [`crate::remote`]; `null` when not fed from a network) |
 //! | `GET /api/calib` | calibration state: per camera its inputs, frozen frame, outcomes |
 //! | `POST /api/calib/{cam}/freeze` | freeze the camera's next frame |
 //! | `GET /api/calib/{cam}/frame` | the frozen frame (binary, like the live frames) |
@@ -173,6 +173,7 @@ fn status_json(sh: &Shared) -> serde_json::Value {
         "session": lock(&sh.session).is_some(),
         "events": lock(&sh.events).json(),
         "ball": lock(&sh.ball).json(),
+        "remote": lock(&sh.remote).json(),
     })
 }
 

@@ -15,6 +15,7 @@ pub mod line;
 pub mod marker;
 pub mod measurement;
 pub mod pipeline;
+pub mod preview;
 pub mod signal;
 pub mod time;
 pub mod track;

@@ -3,8 +3,11 @@
 //! [`CameraNode::sink`] publishes the camera's filtered rows (what `track --out` writes) on
 //! `.../rows`; [`CameraNode::hooks`] wraps the caller's hooks and publishes the measured rows
 //! (the fusion's input, [`rodtrack_sdk::Hooks::camera_rows`]) on `.../raw` and the session's
-//! counters on `.../status` once a second; [`CameraNode::end`] says the run ended.
+//! counters on `.../status` once a second; [`CameraNode::end`] says the run ended. With a
+//! preview rate, the hooks also publish a downscaled image of the camera's latest frame on
+//! `.../preview` that many times per second (module `camera_preview`).
 
+use crate::camera_preview::PreviewFeed;
 use crate::layout::{camera_bit, Header, Kind};
 use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
 use crate::ZenohError;
@@ -21,6 +24,7 @@ pub struct CameraNode {
     rows: RowPublisher,
     raw: RowPublisher,
     status: RowPublisher,
+    preview: Option<PreviewFeed>,
     _session: zenoh::Session,
     table: String,
     name: String,
@@ -34,11 +38,13 @@ pub struct CameraNode {
 
 impl CameraNode {
     /// Opens the zenoh session and declares the camera's publishers; `name` and `index` are
-    /// the camera's in the calibration.
+    /// the camera's in the calibration; `preview_fps`: preview frames per second on
+    /// `.../preview` (0: none).
     pub fn open(
         net: &NetworkOptions,
         name: &str,
         index: u32,
+        preview_fps: f64,
     ) -> Result<Arc<CameraNode>, ZenohError> {
         let table = net.table()?.to_string();
         check_chunk("camera name", name)?;
@@ -46,10 +52,21 @@ impl CameraNode {
         let decl = |what: &str, format| {
             RowPublisher::declare(&session, camera_key(&table, name, what), format)
         };
+        let preview = if preview_fps == 0.0 {
+            None
+        } else {
+            Some(PreviewFeed::start(
+                &session,
+                camera_key(&table, name, "preview"),
+                index,
+                preview_fps,
+            )?)
+        };
         Ok(Arc::new(CameraNode {
             rows: decl("rows", net.format)?,
             raw: decl("raw", net.format)?,
             status: decl("status", crate::net::WireFormat::Json)?,
+            preview,
             _session: session,
             table,
             name: name.to_string(),
@@ -112,6 +129,8 @@ impl CameraNode {
             "frames_published": self.frames_published.load(Ordering::Relaxed),
             "publish_errors": self.publish_errors(),
             "uptime_s": self.started.elapsed().as_secs_f64(),
+            "previews_published": self.preview.as_ref().map_or(0, PreviewFeed::published),
+            "preview_errors": self.preview.as_ref().map_or(0, PreviewFeed::errors),
         });
         if let (Some(p), Some(o)) = (p, v.as_object_mut()) {
             let secs = p.elapsed.as_secs_f64().max(1e-9);
@@ -183,9 +202,13 @@ impl Hooks for CameraNodeHooks {
         self.inner.camera_rows(camera, meta, rows);
     }
     fn uses_frames(&self) -> bool {
-        self.inner.uses_frames()
+        self.node.preview.is_some() || self.inner.uses_frames()
     }
     fn frame(&self, camera: u32, buf: &mut FrameBuffer) {
+        // Before the inner hooks: they may swap the pixels out (the local console).
+        if let Some(p) = &self.node.preview {
+            p.offer(buf);
+        }
         self.inner.frame(camera, buf);
     }
     fn bad_frame(&self, camera: &str, frame_id: u64, error: &str, count: u64) {

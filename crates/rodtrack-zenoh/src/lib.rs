@@ -13,6 +13,7 @@
 //! | `rodtrack/<table>/cam/<camera>/rows` | the camera's rows through its temporal filter, one message per frame | `layout` (binary or JSON) |
 //! | `rodtrack/<table>/cam/<camera>/raw` | the camera's measured rows, the fusion's input; an `end` message when its run ends | `layout` |
 //! | `rodtrack/<table>/cam/<camera>/status` | the camera node's counters, once a second | JSON |
+//! | `rodtrack/<table>/cam/<camera>/preview` | a downscaled image of the camera's latest frame, a few per second (`--preview-fps`) | `preview` |
 //! | `rodtrack/<table>/fused/rows` | the fused rows of each frame set, with the set's completeness | `layout` |
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
 //!
@@ -23,6 +24,9 @@
 //! - `camera`: a camera node (a sink and hooks for an SDK `Session`);
 //! - `fusion`: the fusion node (the runtime pipeline over the cameras' messages, with the
 //!   same filters and fusion as an in-process session);
+//! - `preview`: the preview frames' layout (versioned binary), no zenoh in it;
+//! - `monitor`: a remote console's subscriber to every node of a table (rows, statuses,
+//!   previews), decoded, malformed messages counted;
 //! - `replay`: an MCAP recording's rows published again in real time, on the same keys;
 //! - `subscriber`: a program's subscriber to the rows (the fused rows of a table), decoded
 //!   (the example `fused_subscriber` prints each rod's fused position through it).
@@ -30,13 +34,19 @@
 #[cfg(feature = "zenoh")]
 pub mod camera;
 #[cfg(feature = "zenoh")]
+mod camera_preview;
+#[cfg(feature = "zenoh")]
 mod error;
 #[cfg(feature = "zenoh")]
 pub mod fusion;
 #[cfg(feature = "zenoh")]
 pub mod layout;
 #[cfg(feature = "zenoh")]
+pub mod monitor;
+#[cfg(feature = "zenoh")]
 pub mod net;
+#[cfg(feature = "zenoh")]
+pub mod preview;
 #[cfg(feature = "zenoh")]
 pub mod replay;
 #[cfg(feature = "zenoh")]

@@ -1,5 +1,6 @@
 //! `rodtrack console`: the web console, on the built-in simulator (`--demo`) or for
-//! calibrating real cameras from their calibration inputs (`--inputs cam0.json ...`).
+//! calibrating real cameras from their calibration inputs (`--inputs cam0.json ...`), or for
+//! a camera network's nodes (`--subscribe zenoh`, in `console_remote`).
 
 use crate::console_hooks::{ConsoleHooks, LiveHooks};
 use crate::track::ConsoleRows;
@@ -43,6 +44,13 @@ pub struct Args {
     /// Stop after this many seconds (default: run until interrupted).
     #[arg(long)]
     pub seconds: Option<f64>,
+    /// Show a camera network's nodes: every camera node's rows, status and preview frames,
+    /// the fusion node's fused rows and status (docs/network.md; needs the `zenoh` feature).
+    #[arg(long, value_enum, conflicts_with_all = ["demo", "inputs"])]
+    pub subscribe: Option<crate::network::NetworkArg>,
+    /// The network's endpoints and table (with --subscribe).
+    #[command(flatten)]
+    pub net: crate::network::NetArgs,
 }
 
 /// Runs the command.
@@ -50,8 +58,11 @@ pub fn run(args: Args) -> Result<()> {
     if args.demo {
         return run_demo(&args);
     }
+    if args.subscribe.is_some() {
+        return crate::console_remote::run(&args);
+    }
     if args.inputs.is_empty() {
-        bail!("give --demo (the built-in simulator) or --inputs CAM.json (calibration inputs)");
+        bail!("give --demo (the built-in simulator), --inputs CAM.json (calibration inputs) or --subscribe zenoh (a camera network)");
     }
     let mut cameras = Vec::new();
     for (index, path) in args.inputs.iter().enumerate() {

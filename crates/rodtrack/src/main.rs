@@ -8,6 +8,7 @@ mod calibrate;
 mod choices;
 mod console;
 mod console_hooks;
+mod console_remote;
 mod demo;
 mod evaluate;
 mod fuse;

@@ -69,10 +69,11 @@ pub fn network_options(a: &NetArgs) -> rodtrack_zenoh::net::NetworkOptions {
 
 /// Opens the node of camera `name` (index `index` in the calibration).
 #[cfg(feature = "zenoh")]
-pub fn open_camera_node(a: &NetArgs, name: &str, index: u32) -> Result<Node> {
+pub fn open_camera_node(a: &NetArgs, name: &str, index: u32, preview_fps: f64) -> Result<Node> {
     use anyhow::Context;
-    let node = rodtrack_zenoh::camera::CameraNode::open(&network_options(a), name, index)
-        .with_context(|| format!("camera {index} ({name}): joining the zenoh network"))?;
+    let node =
+        rodtrack_zenoh::camera::CameraNode::open(&network_options(a), name, index, preview_fps)
+            .with_context(|| format!("camera {index} ({name}): joining the zenoh network"))?;
     eprintln!(
         "publishing on {} (and .../raw, .../status)",
         node.rows_key()
@@ -82,7 +83,7 @@ pub fn open_camera_node(a: &NetArgs, name: &str, index: u32) -> Result<Node> {
 
 /// Opens the node of camera `name` (index `index` in the calibration).
 #[cfg(not(feature = "zenoh"))]
-pub fn open_camera_node(_a: &NetArgs, _name: &str, _index: u32) -> Result<Node> {
+pub fn open_camera_node(_a: &NetArgs, _name: &str, _index: u32, _preview_fps: f64) -> Result<Node> {
     Err(no_zenoh())
 }
 

@@ -88,6 +88,10 @@ pub struct Args {
     /// index in the calibration).
     #[arg(long)]
     pub camera: Option<String>,
+    /// With --publish: preview frames per second (a downscaled image of the camera's latest
+    /// frame on `rodtrack/<table>/cam/<camera>/preview`, for remote consoles); 0: none.
+    #[arg(long, default_value_t = 2.0)]
+    pub preview_fps: f64,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: crate::network::NetArgs,
@@ -227,7 +231,10 @@ pub fn run(args: Args) -> Result<()> {
         Some(crate::network::NetworkArg::Zenoh) => {
             let cam = &cal.cameras[0];
             Some(crate::network::open_camera_node(
-                &args.net, &cam.name, cam.index,
+                &args.net,
+                &cam.name,
+                cam.index,
+                args.preview_fps,
             )?)
         }
         None => None,

@@ -1,0 +1,265 @@
+//! A remote console's view of a table: one subscriber to every node's rows, statuses and
+//! previews (`rodtrack console --subscribe zenoh`).
+//!
+//! Subscribed key expressions (`<table>` from the options):
+//! `rodtrack/<table>/cam/*/rows`, `.../cam/*/status`, `.../cam/*/preview`,
+//! `rodtrack/<table>/fused/rows`, `.../fused/status`. Each message is decoded and handed to
+//! the callback as a [`NodeEvent`]; a message that does not decode (or a row message of the
+//! wrong kind, a status that is not a JSON object) is a [`NodeEvent::Malformed`], counted,
+//! never a panic.
+
+use crate::layout::{decode, Kind, Message};
+use crate::net::{camera_key, fused_key, NetworkOptions};
+use crate::preview::{decode_preview, PreviewMessage};
+use crate::ZenohError;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use zenoh::pubsub::Subscriber;
+use zenoh::Wait;
+
+/// A node of the table: a camera node (by its camera's name) or the fusion node.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Node {
+    /// The camera node of the camera of this name.
+    Camera(String),
+    /// The fusion node.
+    Fusion,
+}
+
+impl Node {
+    /// `cam/<camera>` or `fused`: the node's part of its key expressions.
+    pub fn label(&self) -> String {
+        match self {
+            Node::Camera(name) => format!("cam/{name}"),
+            Node::Fusion => "fused".into(),
+        }
+    }
+}
+
+/// What came from the network.
+#[derive(Debug)]
+pub enum NodeEvent<'a> {
+    /// A camera's filtered rows (kind [`Kind::CameraRows`]) or fused rows ([`Kind::Fused`]).
+    Rows {
+        /// The key expression it came on.
+        key: &'a str,
+        /// Its node.
+        node: Node,
+        /// The message.
+        message: Message,
+    },
+    /// A node's status (a JSON object, as the node published it).
+    Status {
+        /// The key expression it came on.
+        key: &'a str,
+        /// Its node.
+        node: Node,
+        /// The status.
+        status: serde_json::Value,
+    },
+    /// A camera's preview frame.
+    Preview {
+        /// The key expression it came on.
+        key: &'a str,
+        /// Its node.
+        node: Node,
+        /// The preview.
+        preview: PreviewMessage,
+    },
+    /// A message that could not be used.
+    Malformed {
+        /// The key expression it came on.
+        key: &'a str,
+        /// Why.
+        error: ZenohError,
+        /// Malformed messages so far, this one included.
+        count: u64,
+    },
+}
+
+/// What the monitor calls for each message.
+type OnEvent = Arc<dyn Fn(NodeEvent<'_>) + Send + Sync>;
+
+/// The subscribers to a table's nodes and their zenoh session. Dropped or
+/// [closed](Monitor::close), it stops.
+pub struct Monitor {
+    // Declared before the session so that they are undeclared first.
+    subscribers: Vec<Subscriber<()>>,
+    session: zenoh::Session,
+    malformed: Arc<AtomicU64>,
+}
+
+/// What a key expression's last chunks say.
+#[derive(Clone, Copy)]
+enum What {
+    Rows,
+    Status,
+    Preview,
+}
+
+impl Monitor {
+    /// Opens a session with `net`'s endpoints and subscribes to every node of `net`'s table.
+    /// `on_event` runs in zenoh's threads, once per message: it should return quickly.
+    pub fn open<F>(net: &NetworkOptions, on_event: F) -> Result<Monitor, ZenohError>
+    where
+        F: Fn(NodeEvent<'_>) + Send + Sync + 'static,
+    {
+        let table = net.table()?.to_string();
+        let session = net.open()?;
+        let on_event: OnEvent = Arc::new(on_event);
+        let malformed = Arc::new(AtomicU64::new(0));
+        let mut subscribers = Vec::new();
+        for (key, what) in [
+            (camera_key(&table, "*", "rows"), What::Rows),
+            (camera_key(&table, "*", "status"), What::Status),
+            (camera_key(&table, "*", "preview"), What::Preview),
+            (fused_key(&table, "rows"), What::Rows),
+            (fused_key(&table, "status"), What::Status),
+        ] {
+            let (on_event, malformed) = (on_event.clone(), malformed.clone());
+            let subscriber = session
+                .declare_subscriber(key.clone())
+                .callback(move |sample| {
+                    let key = sample.key_expr().as_str();
+                    let bytes = sample.payload().to_bytes();
+                    let event = match interpret(key, what, &bytes) {
+                        Ok(e) => e,
+                        Err(error) => NodeEvent::Malformed {
+                            key,
+                            error,
+                            count: malformed.fetch_add(1, Ordering::Relaxed) + 1,
+                        },
+                    };
+                    on_event(event);
+                })
+                .wait()
+                .map_err(|e| ZenohError::zenoh(format!("declaring a subscriber on {key}"), e))?;
+            subscribers.push(subscriber);
+        }
+        Ok(Monitor {
+            subscribers,
+            session,
+            malformed,
+        })
+    }
+
+    /// The key expressions subscribed to.
+    pub fn keys(&self) -> Vec<&str> {
+        self.subscribers
+            .iter()
+            .map(|s| s.key_expr().as_str())
+            .collect()
+    }
+
+    /// Malformed messages so far.
+    pub fn malformed(&self) -> u64 {
+        self.malformed.load(Ordering::Relaxed)
+    }
+
+    /// Undeclares the subscribers and closes the session.
+    pub fn close(self) {
+        let Monitor {
+            subscribers,
+            session,
+            ..
+        } = self;
+        for s in subscribers {
+            let _ = s.undeclare().wait();
+        }
+        let _ = session.close().wait();
+    }
+}
+
+/// The node of a key expression `rodtrack/<table>/cam/<camera>/<what>` or
+/// `rodtrack/<table>/fused/<what>`.
+fn node_of(key: &str) -> Result<Node, ZenohError> {
+    let parts: Vec<&str> = key.split('/').collect();
+    match parts.as_slice() {
+        ["rodtrack", _, "cam", camera, _] => Ok(Node::Camera((*camera).to_string())),
+        ["rodtrack", _, "fused", _] => Ok(Node::Fusion),
+        _ => Err(ZenohError::Message(format!(
+            "key expression {key} is not a node's"
+        ))),
+    }
+}
+
+fn interpret<'a>(key: &'a str, what: What, bytes: &[u8]) -> Result<NodeEvent<'a>, ZenohError> {
+    let node = node_of(key)?;
+    Ok(match what {
+        What::Rows => {
+            let message = decode(bytes)?;
+            let expected = match node {
+                Node::Camera(_) => Kind::CameraRows,
+                Node::Fusion => Kind::Fused,
+            };
+            if message.header.kind != expected {
+                return Err(ZenohError::Message(format!(
+                    "a `{}` message where `{}` messages go",
+                    message.header.kind.name(),
+                    expected.name()
+                )));
+            }
+            NodeEvent::Rows { key, node, message }
+        }
+        What::Status => {
+            let status: serde_json::Value = serde_json::from_slice(bytes)
+                .map_err(|e| ZenohError::Message(format!("status JSON: {e}")))?;
+            if !status.is_object() {
+                return Err(ZenohError::Message(
+                    "a status that is not a JSON object".into(),
+                ));
+            }
+            NodeEvent::Status { key, node, status }
+        }
+        What::Preview => {
+            if matches!(node, Node::Fusion) {
+                return Err(ZenohError::Message("a preview of the fusion node".into()));
+            }
+            NodeEvent::Preview {
+                key,
+                node,
+                preview: decode_preview(bytes)?,
+            }
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn messages_are_told_apart_by_key_and_refused_by_reason() {
+        assert_eq!(
+            node_of("rodtrack/t/cam/cam0/rows").unwrap(),
+            Node::Camera("cam0".into())
+        );
+        assert_eq!(node_of("rodtrack/t/fused/status").unwrap(), Node::Fusion);
+        let e = |key: &str, what, b: &[u8]| match interpret(key, what, b) {
+            Err(e) => e.to_string(),
+            Ok(ev) => panic!("{ev:?}"),
+        };
+        assert!(e("rodtrack/t/cam/c/status", What::Status, b"[1]").contains("not a JSON object"));
+        assert!(e("rodtrack/t/cam/c/status", What::Status, b"{").contains("status JSON"));
+        assert!(e("rodtrack/t/cam/c/preview", What::Preview, b"RTZP").contains("shorter"));
+        assert!(e("rodtrack/t/cam/c/rows", What::Rows, b"xx").contains("shorter"));
+        let mut fused = Vec::new();
+        let header = crate::layout::Header {
+            kind: Kind::Fused,
+            seq: 0,
+            frame: 1,
+            timestamp_ns: rodtrack_core::Timestamp(5),
+            complete: true,
+            cameras: 3,
+        };
+        crate::layout::encode(&header, &[], &mut fused).unwrap();
+        assert!(e("rodtrack/t/cam/c/rows", What::Rows, &fused).contains("`fused` message"));
+        match interpret("rodtrack/t/fused/rows", What::Rows, &fused).unwrap() {
+            NodeEvent::Rows { node, message, .. } => {
+                assert_eq!((node, message.header.frame), (Node::Fusion, 1));
+            }
+            ev => panic!("{ev:?}"),
+        }
+    }
+}

@@ -1,0 +1,92 @@
+//! `rodtrack console --subscribe zenoh`: the web console fed from a camera network: every
+//! camera node's rows, status and preview frames, the fusion node's fused rows and status
+//! (docs/network.md).
+
+use crate::console::Args;
+use anyhow::Result;
+
+/// Malformed messages printed (the rest are counted).
+#[cfg(feature = "zenoh")]
+const PRINTED_MALFORMED: u64 = 5;
+
+/// Runs the console on the network (a build without the `zenoh` feature refuses).
+#[cfg(not(feature = "zenoh"))]
+pub fn run(_args: &Args) -> Result<()> {
+    Err(crate::network::no_zenoh())
+}
+
+/// Runs the console on the network.
+#[cfg(feature = "zenoh")]
+pub fn run(args: &Args) -> Result<()> {
+    use anyhow::Context;
+    use rodtrack_console::{Console, ConsoleOptions, Preview};
+    use rodtrack_zenoh::monitor::{Monitor, NodeEvent};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    crate::interrupt::catch_early();
+    let net = crate::network::network_options(&args.net);
+    let table = net.table()?.to_string();
+    let console = Arc::new(
+        Console::start_with(
+            args.addr,
+            None,
+            &ConsoleOptions {
+                allowed_hosts: args.allow_host.clone(),
+            },
+        )
+        .context("cannot start the console")?,
+    );
+    let c = console.clone();
+    let monitor = Monitor::open(&net, move |event| match event {
+        NodeEvent::Rows { message, .. } => c.publish_rows(&message.rows),
+        NodeEvent::Status { node, status, .. } => c.publish_node_status(&node.label(), status),
+        NodeEvent::Preview { key, preview, .. } => {
+            let h = preview.header;
+            let p = Preview {
+                width: h.width_px as usize,
+                height: h.height_px as usize,
+                channels: h.format.channels(),
+                factor: 1,
+                pixels: preview.pixels,
+            };
+            let source = (h.source_width_px as usize, h.source_height_px as usize);
+            if let Err(e) =
+                c.publish_preview(h.camera, &p, source, h.frame, h.timestamp_ns.as_secs_f64())
+            {
+                c.note_malformed(key, &e.to_string());
+                eprintln!("preview on {key} not shown: {e}");
+            }
+        }
+        NodeEvent::Malformed { key, error, count } => {
+            c.note_malformed(key, &error.to_string());
+            if count <= PRINTED_MALFORMED {
+                eprintln!("malformed message on {key}: {error}");
+            }
+            if count == PRINTED_MALFORMED {
+                eprintln!("(further malformed messages are counted, not printed)");
+            }
+        }
+    })
+    .context("joining the zenoh network")?;
+    println!(
+        "rodtrack console: {} (camera network, table `{table}`)",
+        console.url()
+    );
+    eprintln!("subscribed to {}", monitor.keys().join(", "));
+    let stop = Arc::new(AtomicBool::new(false));
+    crate::interrupt::install(stop.clone());
+    let until = args
+        .seconds
+        .map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
+    while !stop.load(Ordering::SeqCst) && until.is_none_or(|u| Instant::now() < u) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let malformed = monitor.malformed();
+    monitor.close();
+    if malformed > 0 {
+        eprintln!("{malformed} malformed message(s) received");
+    }
+    Ok(())
+}
