@@ -26,7 +26,7 @@ use rodtrack_io::runtime::{
 };
 use rodtrack_io::source::SourceInfo;
 use rodtrack_io::{FrameBuffer, FrameSource, IoError, MeasurementSink, SourceError};
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
@@ -359,20 +359,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         cameras: cal
             .cameras
             .iter()
-            .map(|c| CameraWatch {
-                name: c.name.clone(),
-                index: c.index,
-                state: AtomicU8::new(CameraState::Waiting.code()),
-                last_seen_ns: AtomicU64::new(0),
-                last_key: AtomicU64::new(0),
-                last_frame: AtomicU64::new(0),
-                losses: AtomicU64::new(0),
-                returns: AtomicU64::new(0),
-                frames_missed: AtomicU64::new(0),
-                refused: AtomicU64::new(0),
-                behind_since_ns: AtomicU64::new(0),
-                awake_ns: AtomicU64::new(0),
-            })
+            .map(|c| CameraWatch::new(c.name.clone(), c.index))
             .collect(),
         first_any_ns: AtomicU64::new(0),
         loss_ns,

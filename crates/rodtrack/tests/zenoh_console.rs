@@ -8,11 +8,12 @@
 use rodtrack_zenoh::zenoh::{self, Wait};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
+mod zenoh_common;
+use zenoh_common::{calibration, dir, free_port, unix_ms, BIN};
 /// Frames prerendered by each camera node.
 const PRERENDER: u32 = 20;
 /// From the nodes' start to the shared trigger's frame 0 (a loaded 2-core machine).
@@ -23,62 +24,6 @@ const FRAMES: u64 = 1200;
 /// of 4x4).
 const SOURCE_PX: (u64, u64) = (1440, 1080);
 const PREVIEW_PX: (u64, u64) = (360, 270);
-
-fn dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run_ok(args: &[&str]) {
-    let out = Command::new(BIN).args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "rodtrack {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// A simulated table (exp3) and its two-camera calibration.
-fn calibration(t: &Path) -> PathBuf {
-    let rec = t.join("rec").display().to_string();
-    run_ok(&[
-        "simulate",
-        "--scenario",
-        "exp3",
-        "--frames",
-        "20",
-        "--out",
-        &rec,
-    ]);
-    let calib = t.join("c.toml");
-    run_ok(&[
-        "calibrate",
-        "--inputs",
-        &format!("{rec}/cam0.json"),
-        "--inputs",
-        &format!("{rec}/cam1.json"),
-        "--out",
-        &calib.display().to_string(),
-    ]);
-    calib
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-fn unix_ms() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_millis() as u64
-}
 
 /// A process whose stderr goes to a file, killed when dropped.
 struct Proc {

@@ -16,7 +16,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_rodtrack");
+mod zenoh_common;
+use zenoh_common::{calibration, dir, free_port, run_ok, unix_ms, BIN};
 /// Frames prerendered by each node (rendering on the host CPU is far slower than 200 fps).
 const PRERENDER: u32 = 20;
 /// From the nodes' start to the shared trigger's frame 0: long enough for a node to start
@@ -24,62 +25,6 @@ const PRERENDER: u32 = 20;
 const START_MS: u64 = 6000;
 /// The tests start several processes each: one at a time.
 static SERIAL: Mutex<()> = Mutex::new(());
-
-fn dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run_ok(args: &[&str]) {
-    let out = Command::new(BIN).args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "rodtrack {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// A simulated table (exp3) and its two-camera calibration.
-fn calibration(t: &Path) -> PathBuf {
-    let rec = t.join("rec").display().to_string();
-    run_ok(&[
-        "simulate",
-        "--scenario",
-        "exp3",
-        "--frames",
-        "20",
-        "--out",
-        &rec,
-    ]);
-    let calib = t.join("c.toml");
-    run_ok(&[
-        "calibrate",
-        "--inputs",
-        &format!("{rec}/cam0.json"),
-        "--inputs",
-        &format!("{rec}/cam1.json"),
-        "--out",
-        &calib.display().to_string(),
-    ]);
-    calib
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-fn unix_ms() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_millis() as u64
-}
 
 /// The `sim://` input of camera `cam` on the shared trigger `t0` (or, `None`, the same frames
 /// read as fast as possible in one process).

@@ -72,6 +72,23 @@ pub(super) struct CameraWatch {
 }
 
 impl CameraWatch {
+    /// A camera not heard from yet.
+    pub(super) fn new(name: String, index: u32) -> CameraWatch {
+        CameraWatch {
+            name,
+            index,
+            state: AtomicU8::new(CameraState::Waiting.code()),
+            last_seen_ns: AtomicU64::new(0),
+            last_key: AtomicU64::new(0),
+            last_frame: AtomicU64::new(0),
+            losses: AtomicU64::new(0),
+            returns: AtomicU64::new(0),
+            frames_missed: AtomicU64::new(0),
+            refused: AtomicU64::new(0),
+            behind_since_ns: AtomicU64::new(0),
+            awake_ns: AtomicU64::new(0),
+        }
+    }
     pub(super) fn state(&self) -> CameraState {
         CameraState::from_code(self.state.load(Ordering::Relaxed))
     }
@@ -198,20 +215,7 @@ mod tests {
     const TICK_NS: u64 = PERIOD_NS / 4;
 
     fn watch(log: Arc<Mutex<Vec<String>>>) -> Watch {
-        let camera = |index: u32| CameraWatch {
-            name: format!("cam{index}"),
-            index,
-            state: AtomicU8::new(CameraState::Waiting.code()),
-            last_seen_ns: AtomicU64::new(0),
-            last_key: AtomicU64::new(0),
-            last_frame: AtomicU64::new(0),
-            losses: AtomicU64::new(0),
-            returns: AtomicU64::new(0),
-            frames_missed: AtomicU64::new(0),
-            refused: AtomicU64::new(0),
-            behind_since_ns: AtomicU64::new(0),
-            awake_ns: AtomicU64::new(0),
-        };
+        let camera = |index: u32| CameraWatch::new(format!("cam{index}"), index);
         Watch {
             started: Instant::now(),
             cameras: vec![camera(0), camera(1)],
