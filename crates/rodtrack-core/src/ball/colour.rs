@@ -300,9 +300,10 @@ mod tests {
         assert!(m.is_field([50.0, 190.0, 60.0]));
         assert!((m.alpha([240.0, 150.0, 40.0]) - 1.0).abs() < 1e-4);
         assert!(m.alpha([25.0, 95.0, 30.0]).abs() < 1e-4);
-        // Half and half: on the line, halfway.
+        // Half and half (a blurred edge): on the line, at the brighter ball's share of the
+        // light (a mixture's chromaticity is weighted by brightness: 430 / (430 + 150)).
         let mix = m.alpha([132.5, 122.5, 35.0]);
-        assert!(mix > 0.3 && mix < 0.7, "{mix}");
+        assert!((mix - 430.0 / 580.0).abs() < 1e-3, "{mix}");
         // Grey (a rod) projects between field and ball, but is no mixture of them; nor is a
         // red figure, beyond the ball on the line.
         assert_eq!(m.alpha([120.0, 120.0, 120.0]), OFF_AXIS);
