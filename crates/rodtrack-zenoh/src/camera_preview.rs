@@ -127,6 +127,25 @@ impl Drop for PreviewFeed {
     }
 }
 
+/// Waits on the slot while `waiting` holds, at most until `until`.
+fn wait_while<'a>(
+    sh: &Shared,
+    mut s: MutexGuard<'a, Slot>,
+    until: Instant,
+    waiting: impl Fn(&Slot) -> bool,
+) -> MutexGuard<'a, Slot> {
+    loop {
+        let now = Instant::now();
+        if !waiting(&s) || now >= until {
+            return s;
+        }
+        s = sh
+            .wake
+            .wait_timeout(s, until - now)
+            .map_or_else(|e| e.into_inner().0, |r| r.0);
+    }
+}
+
 /// The preview thread.
 fn run(
     sh: &Shared,
@@ -141,34 +160,14 @@ fn run(
     let mut next = Instant::now();
     loop {
         // Until the next preview is due.
-        let mut s = lock(&sh.slot);
-        loop {
-            let now = Instant::now();
-            if s.stop {
-                return;
-            }
-            if now >= next {
-                break;
-            }
-            s = sh
-                .wake
-                .wait_timeout(s, next - now)
-                .map_or_else(|e| e.into_inner().0, |r| r.0);
+        let s = wait_while(sh, lock(&sh.slot), next, |s| !s.stop);
+        if s.stop {
+            return;
         }
         next += interval;
         // Ask the tracking thread for its next frame, and wait for it.
         sh.want.store(true, Ordering::Relaxed);
-        let until = Instant::now() + FRAME_WAIT;
-        while !s.fresh && !s.stop {
-            let now = Instant::now();
-            if now >= until {
-                break;
-            }
-            s = sh
-                .wake
-                .wait_timeout(s, until - now)
-                .map_or_else(|e| e.into_inner().0, |r| r.0);
-        }
+        let mut s = wait_while(sh, s, Instant::now() + FRAME_WAIT, |s| !s.fresh && !s.stop);
         if s.stop {
             return;
         }

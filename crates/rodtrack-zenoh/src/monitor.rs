@@ -163,10 +163,7 @@ impl Monitor {
             session,
             ..
         } = self;
-        for s in subscribers {
-            let _ = s.undeclare().wait();
-        }
-        let _ = session.close().wait();
+        crate::net::close_subscribed(subscribers, session);
     }
 }
 

@@ -114,6 +114,17 @@ fn check_endpoint(option: &str, e: &str) -> Result<(), ZenohError> {
     Ok(())
 }
 
+/// Undeclares `subscribers` and closes `session` (errors at closing are of no use to anyone).
+pub(crate) fn close_subscribed(
+    subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
+    session: zenoh::Session,
+) {
+    for s in subscribers {
+        let _ = s.undeclare().wait();
+    }
+    let _ = session.close().wait();
+}
+
 /// `rodtrack/<table>/cam/<camera>/<what>`.
 pub fn camera_key(table: &str, camera: &str, what: &str) -> String {
     format!("rodtrack/{table}/cam/{camera}/{what}")

@@ -134,9 +134,6 @@ impl RowSubscriber {
             session,
             ..
         } = self;
-        for s in subscribers {
-            let _ = s.undeclare().wait();
-        }
-        let _ = session.close().wait();
+        crate::net::close_subscribed(subscribers, session);
     }
 }

@@ -8,12 +8,10 @@
 use rodtrack_zenoh::zenoh::{self, Wait};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod zenoh_common;
-use zenoh_common::{calibration, dir, free_port, unix_ms, BIN};
+use zenoh_common::{calibration, dir, free_port, unix_ms, Proc};
 /// Frames prerendered by each camera node.
 const PRERENDER: u32 = 20;
 /// From the nodes' start to the shared trigger's frame 0 (a loaded 2-core machine).
@@ -24,71 +22,6 @@ const FRAMES: u64 = 1200;
 /// of 4x4).
 const SOURCE_PX: (u64, u64) = (1440, 1080);
 const PREVIEW_PX: (u64, u64) = (360, 270);
-
-/// A process whose stderr goes to a file, killed when dropped.
-struct Proc {
-    child: Option<Child>,
-    stderr: PathBuf,
-}
-
-impl Proc {
-    fn start(args: &[String], stderr: PathBuf) -> Proc {
-        let child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&stderr).unwrap())
-            .spawn()
-            .unwrap();
-        Proc {
-            child: Some(child),
-            stderr,
-        }
-    }
-    fn ended(&mut self) -> bool {
-        self.child
-            .as_mut()
-            .is_none_or(|c| c.try_wait().unwrap().is_some())
-    }
-    /// Ctrl-C, then waits (at most `limit`) for a clean end; returns the log.
-    fn interrupt(&mut self, limit: Duration) -> String {
-        let mut child = self.child.take().unwrap();
-        let st = Command::new("kill")
-            .args(["-INT", &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(st.success());
-        let until = Instant::now() + limit;
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break s;
-            }
-            if Instant::now() > until {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!(
-                    "a rodtrack process did not end within {limit:?}:\n{}",
-                    self.log()
-                );
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        };
-        assert!(status.success(), "ended with {status}:\n{}", self.log());
-        self.log()
-    }
-    fn log(&self) -> String {
-        std::fs::read_to_string(&self.stderr).unwrap_or_default()
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
 
 fn strings(a: &[&str]) -> Vec<String> {
     a.iter().map(|s| s.to_string()).collect()

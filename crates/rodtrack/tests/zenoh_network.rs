@@ -12,12 +12,11 @@ use rodtrack_zenoh::layout::{decode, Kind};
 use rodtrack_zenoh::zenoh::{self, Wait};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod zenoh_common;
-use zenoh_common::{calibration, dir, free_port, run_ok, unix_ms, BIN};
+use zenoh_common::{calibration, dir, free_port, run_ok, unix_ms, Proc};
 /// Frames prerendered by each node (rendering on the host CPU is far slower than 200 fps).
 const PRERENDER: u32 = 20;
 /// From the nodes' start to the shared trigger's frame 0: long enough for a node to start
@@ -33,80 +32,6 @@ fn sim(cam: u32, t0: Option<u64>) -> String {
     match t0 {
         Some(t) => format!("{base}&realtime=1&trigger_unix_ms={t}"),
         None => base,
-    }
-}
-
-/// A process whose stderr goes to a file, killed if the test fails.
-struct Proc {
-    child: Option<Child>,
-    stderr: PathBuf,
-}
-
-impl Proc {
-    fn start(args: &[String], stderr: PathBuf) -> Proc {
-        let child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&stderr).unwrap())
-            .spawn()
-            .unwrap();
-        Proc {
-            child: Some(child),
-            stderr,
-        }
-    }
-    fn pid(&self) -> u32 {
-        self.child.as_ref().unwrap().id()
-    }
-    /// Ctrl-C, then waits (at most `limit`) for a clean end.
-    fn interrupt(&mut self, limit: Duration) -> String {
-        let st = Command::new("kill")
-            .args(["-INT", &self.pid().to_string()])
-            .status()
-            .unwrap();
-        assert!(st.success());
-        self.wait(limit)
-    }
-    /// Waits (at most `limit`) for the process to end by itself; it must succeed.
-    fn wait(&mut self, limit: Duration) -> String {
-        let mut child = self.child.take().unwrap();
-        let until = Instant::now() + limit;
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break s;
-            }
-            if Instant::now() > until {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!(
-                    "a rodtrack process did not end within {limit:?}:\n{}",
-                    self.log()
-                );
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        };
-        let log = self.log();
-        assert!(status.success(), "rodtrack ended with {status}:\n{log}");
-        log
-    }
-    /// Kills it at once (SIGKILL: a crash, nothing sent at the end).
-    fn kill(&mut self) {
-        let mut c = self.child.take().unwrap();
-        c.kill().unwrap();
-        c.wait().unwrap();
-    }
-    fn log(&self) -> String {
-        std::fs::read_to_string(&self.stderr).unwrap_or_default()
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
     }
 }
 
