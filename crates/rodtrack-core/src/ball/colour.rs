@@ -240,18 +240,22 @@ impl ColourModel {
     /// between them. A black sample counts as field (a shadow).
     #[inline]
     pub fn alpha(&self, rgb: [f32; 3]) -> f32 {
-        match chroma(rgb) {
-            Some(c) => {
-                let (dx, dy) = (c[0] - self.field[0], c[1] - self.field[1]);
-                let a = dx * self.axis[0] + dy * self.axis[1];
-                let off = (dx * self.normal[0] + dy * self.normal[1]).abs();
-                if off > self.mix_thr || a < -self.mix_alpha_thr || a > 1.0 + self.mix_alpha_thr {
-                    OFF_AXIS
-                } else {
-                    a
-                }
-            }
-            None => 0.0,
+        // In chromaticity times the sample's sum `s` (as `is_ball`): one division, for an
+        // on-axis sample only.
+        let s = rgb[0] + rgb[1] + rgb[2];
+        if s <= 1.0 {
+            return 0.0;
+        }
+        let (dx, dy) = (rgb[0] - self.field[0] * s, rgb[1] - self.field[1] * s);
+        let a_s = dx * self.axis[0] + dy * self.axis[1];
+        let off_s = (dx * self.normal[0] + dy * self.normal[1]).abs();
+        if off_s > self.mix_thr * s
+            || a_s < -self.mix_alpha_thr * s
+            || a_s > (1.0 + self.mix_alpha_thr) * s
+        {
+            OFF_AXIS
+        } else {
+            a_s / s
         }
     }
 }
