@@ -18,7 +18,7 @@ features=rodtrack/video,rodtrack/genicam,rodtrack/zenoh
 
 echo "== zenoh: unit tests, the three-process network test and the replay (loopback)"
 timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
-    --lib --test zenoh_network --test zenoh_replay --test zenoh_console -- --test-threads=1
+    --lib --test zenoh_network --test zenoh_ball --test zenoh_replay --test zenoh_console -- --test-threads=1
 
 # Release profile, after the release build above: zenoh's build scripts and proc macros (and
 # FFmpeg's bindings) are reused, only the crates are checked again.

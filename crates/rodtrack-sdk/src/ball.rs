@@ -132,6 +132,39 @@ impl EventStage {
     }
 }
 
+/// The cameras' ball rows of frame sets put together away from their trackers (a network's
+/// fusion node): each frame's rows are written once every camera has reported it, or once
+/// another camera is a set lag of frames past it, followed, with several cameras, by the
+/// frame's `fused` row ([`BallFuser`], as in a session). A row of a frame already written goes
+/// out on its own, not fused again.
+pub struct BallSets(BallWriter);
+
+impl BallSets {
+    /// The rows of the cameras `cameras` (their indices) into `sink`, a camera silent while
+    /// another one is `max_lag_frames` frames ahead not waited for.
+    pub fn new(cameras: &[u32], max_lag_frames: u64, sink: Box<dyn BallSink>) -> BallSets {
+        let mut w = BallWriter::new(sink, cameras.iter().map(|&c| (c, None)).collect());
+        w.max_lag_frames = Some(max_lag_frames);
+        BallSets(w)
+    }
+
+    /// Takes camera `camera`'s row with its position's standard deviation, mm (infinite, 0 or
+    /// NaN when lost or not known: such a row is not weighed into the fused position).
+    pub fn push(&mut self, camera: u32, row: BallRow, sigma_mm: f64) {
+        let sigma_mm = if sigma_mm > 0.0 {
+            sigma_mm
+        } else {
+            f64::INFINITY
+        };
+        self.0.push(camera, row, sigma_mm);
+    }
+
+    /// Writes what is pending and flushes: the counts, or the first error.
+    pub fn finish(&mut self) -> Result<BallCounts, SdkError> {
+        self.0.finish()
+    }
+}
+
 /// The session's ball: the trackers (taken by the cameras' threads) and the ordered writer.
 pub(crate) struct BallStage {
     trackers: Vec<(u32, BallTracker)>,
@@ -148,6 +181,15 @@ pub(crate) struct BallWriter {
     fuser: Option<BallFuser>,
     /// The rows of one write (cameras' and fused), kept for its capacity.
     out: Vec<BallRow>,
+    /// Their positions' standard deviations (NaN for a fused row), beside `out`.
+    out_sigma: Vec<f64>,
+    /// The newest frame written: a camera's row of it or an older one comes late, and is
+    /// written on its own, not fused again (the frame's fused row is out already).
+    written_up_to: Option<u64>,
+    /// Frames held back for a camera that has not reported them at most this many frames
+    /// behind the newest frame reported (a network's lost camera); `None`: only
+    /// [`MAX_PENDING_ROWS`] bounds it.
+    max_lag_frames: Option<u64>,
     /// One frame's camera rows, kept for its capacity.
     group: Vec<CameraBall>,
     last: Vec<(u32, Option<u64>)>,
@@ -232,16 +274,7 @@ impl BallStage {
             .writer
             .lock()
             .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
-        w.emit(u64::MAX);
-        if w.error.is_none() {
-            if let Err(e) = w.sink.flush() {
-                w.error = Some(e.to_string());
-            }
-        }
-        match &w.error {
-            Some(e) => Err(SdkError::Runtime(format!("writing the ball rows: {e}"))),
-            None => Ok(w.counts),
-        }
+        w.finish()
     }
 }
 
@@ -254,6 +287,9 @@ impl BallWriter {
             pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
             fuser: (cameras > 1).then(BallFuser::default),
             out: Vec::with_capacity(MAX_PENDING_ROWS + 1 + MAX_PENDING_ROWS.div_ceil(2)),
+            out_sigma: Vec::with_capacity(MAX_PENDING_ROWS + 1 + MAX_PENDING_ROWS.div_ceil(2)),
+            written_up_to: None,
+            max_lag_frames: None,
             group: Vec::with_capacity(cameras),
             last,
             error: None,
@@ -265,6 +301,10 @@ impl BallWriter {
     /// Takes camera `camera`'s row, with its position's standard deviation
     /// ([`BallTracker::row_sigma_mm`]), and writes every frame all cameras have reported.
     pub(crate) fn push(&mut self, camera: u32, row: BallRow, sigma_mm: f64) {
+        if self.written_up_to.is_some_and(|w| row.frame <= w) {
+            self.write_late(row, sigma_mm);
+            return;
+        }
         let at = self
             .pending
             .iter()
@@ -286,6 +326,45 @@ impl BallWriter {
             let oldest = self.pending[0].row.frame;
             self.emit(oldest);
         }
+        if let Some(lag) = self.max_lag_frames {
+            let newest = self.last.iter().filter_map(|(_, l)| *l).max();
+            if let Some(n) = newest.filter(|&n| n > lag) {
+                self.emit(n - lag - 1);
+            }
+        }
+    }
+
+    /// Writes what is pending and flushes: the counts, or the first error.
+    fn finish(&mut self) -> Result<BallCounts, SdkError> {
+        self.emit(u64::MAX);
+        if self.error.is_none() {
+            if let Err(e) = self.sink.flush() {
+                self.error = Some(e.to_string());
+            }
+        }
+        match &self.error {
+            Some(e) => Err(SdkError::Runtime(format!("writing the ball rows: {e}"))),
+            None => Ok(self.counts),
+        }
+    }
+
+    /// A camera's row of a frame already written: on its own, counted, not fused.
+    fn write_late(&mut self, row: BallRow, sigma_mm: f64) {
+        self.count(row.status);
+        if self.error.is_none() {
+            if let Err(e) = self.sink.write_sigma(&[row], &[sigma_mm]) {
+                self.error = Some(e.to_string());
+            }
+        }
+    }
+
+    fn count(&mut self, status: BallStatus) {
+        match status {
+            BallStatus::Ok => self.counts.ok += 1,
+            BallStatus::Predicted => self.counts.predicted += 1,
+            BallStatus::Lost => self.counts.lost += 1,
+            BallStatus::Conflict => self.counts.conflict += 1,
+        }
     }
 
     /// Takes a camera's rod rows of a frame: their angles give the events the rods' swings
@@ -306,33 +385,32 @@ impl BallWriter {
             return;
         }
         self.out.clear();
+        self.out_sigma.clear();
         let mut i = 0;
         while i < n {
             let frame = self.pending[i].row.frame;
             self.group.clear();
             while i < n && self.pending[i].row.frame == frame {
                 self.out.push(self.pending[i].row);
+                self.out_sigma.push(self.pending[i].sigma_mm);
                 self.group.push(self.pending[i]);
                 i += 1;
             }
             if let Some(f) = self.fuser.as_mut() {
                 self.out.push(f.fuse(&self.group));
+                self.out_sigma.push(f64::NAN);
             }
             // The frame set's row: the fused one, or the one camera's.
             if let (Some(e), Some(r)) = (self.events.as_mut(), self.out.last()) {
                 e.push(r);
             }
         }
-        for r in &self.out {
-            match r.status {
-                BallStatus::Ok => self.counts.ok += 1,
-                BallStatus::Predicted => self.counts.predicted += 1,
-                BallStatus::Lost => self.counts.lost += 1,
-                BallStatus::Conflict => self.counts.conflict += 1,
-            }
+        for i in 0..self.out.len() {
+            self.count(self.out[i].status);
         }
+        self.written_up_to = self.written_up_to.max(Some(self.pending[n - 1].row.frame));
         if self.error.is_none() {
-            if let Err(e) = self.sink.write(&self.out) {
+            if let Err(e) = self.sink.write_sigma(&self.out, &self.out_sigma) {
                 self.error = Some(e.to_string());
             }
         }
@@ -402,9 +480,45 @@ mod tests {
         }
         // Each frame written: camera 0's row and the fused one.
         assert_eq!(sink.rows().len() as u64, 2 * (n - MAX_PENDING_ROWS as u64));
+        // Camera 1's row of a frame written without it: on its own, not fused again.
         w.push(1, row(1, 3), f64::INFINITY);
         w.emit(u64::MAX);
-        assert_eq!(sink.rows().len() as u64, 2 * n + 2);
-        assert_eq!(w.counts.lost, 2 * n + 2);
+        assert_eq!(sink.rows().len() as u64, 2 * n + 1);
+        assert_eq!(w.counts.lost, 2 * n + 1);
+        let fused_3 = sink
+            .rows()
+            .iter()
+            .filter(|r| r.frame == 3 && r.camera == CameraId::Fused)
+            .count();
+        assert_eq!(fused_3, 1, "one fused row per frame");
+    }
+
+    /// On a network (a bounded lag), a camera that stops is waited for that many frames.
+    #[test]
+    fn a_network_writer_waits_for_a_silent_camera_at_most_its_lag() {
+        let sink = BallVecSink::default();
+        let mut w = BallSets::new(&[0, 1], 3, Box::new(sink.clone()));
+        // Camera 1's first row before camera 0's: held, not written alone.
+        w.push(1, row(1, 0), f64::INFINITY);
+        assert!(sink.rows().is_empty());
+        w.push(0, row(0, 0), f64::INFINITY);
+        for f in 1..10 {
+            w.push(0, row(0, f), f64::INFINITY);
+            w.push(1, row(1, f), f64::INFINITY);
+        }
+        assert_eq!(
+            sink.rows().len(),
+            30,
+            "both cameras and the fused row per frame"
+        );
+        for f in 10..20 {
+            w.push(0, row(0, f), f64::INFINITY);
+        }
+        // Frames 10..=15 written without camera 1 (each: camera 0's row and the fused one);
+        // 16..=19 held, 3 frames or fewer behind.
+        assert_eq!(sink.rows().len(), 30 + 2 * 6);
+        let counts = w.finish().unwrap();
+        assert_eq!(sink.rows().len(), 30 + 2 * 10);
+        assert_eq!(counts.lost, 50);
     }
 }

@@ -37,7 +37,7 @@ pub mod session;
 pub mod sinks;
 pub mod sources;
 
-pub use ball::{BallCounts, EventCounts};
+pub use ball::{BallCounts, BallSets, EventCounts};
 pub use calibration::{
     calibrate_camera_file, calibrate_files, calibration_file, print_warning, read_calibration,
     read_inputs, read_opencv_model, write_calibration, ReferenceFolder, DEFAULT_FPS,

@@ -6,13 +6,15 @@
 //! counters on `.../status` once a second; [`CameraNode::end`] says the run ended. With a
 //! preview rate, the hooks also publish a downscaled image of the camera's latest frame on
 //! `.../preview` that many times per second (module `camera_preview`).
+//! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`.
 
 use crate::camera_preview::PreviewFeed;
 use crate::layout::{camera_bit, Header, Kind};
 use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
 use crate::ZenohError;
+use rodtrack_core::ball::BallRow;
 use rodtrack_core::{CameraPipeline, Measurement, Timestamp};
-use rodtrack_io::{FrameBuffer, FrameMeta, IoError, MeasurementSink};
+use rodtrack_io::{BallSink, FrameBuffer, FrameMeta, IoError, MeasurementSink};
 use rodtrack_sdk::{Hooks, Progress};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -23,6 +25,7 @@ pub struct CameraNode {
     // Declared before the session so that they are undeclared first.
     rows: RowPublisher,
     raw: RowPublisher,
+    ball: RowPublisher,
     status: RowPublisher,
     preview: Option<PreviewFeed>,
     _session: zenoh::Session,
@@ -65,6 +68,7 @@ impl CameraNode {
         Ok(Arc::new(CameraNode {
             rows: decl("rows", net.format)?,
             raw: decl("raw", net.format)?,
+            ball: decl("ball", net.format)?,
             status: decl("status", crate::net::WireFormat::Json)?,
             preview,
             _session: session,
@@ -87,6 +91,12 @@ impl CameraNode {
     /// A sink that publishes the rows written to it on `.../rows`.
     pub fn sink(self: &Arc<Self>) -> CameraRowsSink {
         CameraRowsSink { node: self.clone() }
+    }
+
+    /// A ball sink that publishes the camera's ball rows, with their uncertainty, on
+    /// `.../ball` (one message per write: a frame's rows).
+    pub fn ball_sink(self: &Arc<Self>) -> CameraBallSink {
+        CameraBallSink { node: self.clone() }
     }
 
     /// Hooks that publish the measured rows and the status, then call `inner`.
@@ -167,6 +177,29 @@ impl MeasurementSink for CameraRowsSink {
             addr: n.rows.key().to_string(),
             source: std::io::Error::other(e.to_string()),
         })
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
+
+/// Publishes the ball rows written to it on the camera's `.../ball` (see
+/// [`CameraNode::ball_sink`]).
+pub struct CameraBallSink {
+    node: Arc<CameraNode>,
+}
+
+impl BallSink for CameraBallSink {
+    fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
+        self.write_sigma(rows, &[])
+    }
+    fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
+        let n = &self.node;
+        n.count(n.ball.publish_ball(rows, sigma_mm))
+            .map_err(|e| IoError::Net {
+                addr: n.ball.key().to_string(),
+                source: std::io::Error::other(e.to_string()),
+            })
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())

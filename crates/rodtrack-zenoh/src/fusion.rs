@@ -32,8 +32,10 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 
+mod ball;
 mod status;
 mod watch;
+pub use ball::BallReport;
 use status::status_json;
 pub use watch::CameraState;
 use watch::{CameraWatch, Watch};
@@ -245,6 +247,8 @@ pub struct FusionReport {
     pub publish_errors: u64,
     /// The first publishing error.
     pub first_publish_error: Option<String>,
+    /// The ball's rows, when a camera of the calibration has a ball.
+    pub ball: Option<BallReport>,
 }
 
 /// One camera's numbers in a [`FusionReport`].
@@ -302,22 +306,34 @@ impl std::fmt::Display for FusionReport {
                 self.first_publish_error.as_deref().unwrap_or("?")
             )?;
         }
+        if let Some(b) = &self.ball {
+            let c = &b.counts;
+            writeln!(
+                f,
+                "  ball rows: {} ok, {} predicted, {} lost, {} conflict; {} ball message(s) refused",
+                c.ok, c.predicted, c.lost, c.conflict, b.refused
+            )?;
+        }
         Ok(())
     }
 }
 
 /// Runs the fusion node until `stop` is set: subscribes to every camera of `cal`, fuses, and
 /// writes every camera's filtered rows and the fused rows into `sink` (as `track` writes them
-/// for local cameras), publishing the fused rows when [`FusionOptions::publish`]. `log` gets
-/// the cameras' losses and returns and the messages refused.
+/// for local cameras), publishing the fused rows when [`FusionOptions::publish`]. The camera
+/// nodes' ball rows (of the cameras with a ball calibration) are fused per frame too, into
+/// `ball` and, when publishing, onto `.../fused/ball`. `log` gets the cameras' losses and
+/// returns and the messages refused.
 pub fn run_fusion<S: MeasurementSink + 'static>(
     cal: &CalibrationFile,
     net: &NetworkOptions,
     options: &FusionOptions,
     sink: S,
+    ball: Option<Box<dyn rodtrack_io::BallSink>>,
     stop: Arc<AtomicBool>,
     log: Box<dyn Fn(&str) + Send + Sync>,
 ) -> Result<(FusionReport, S), ZenohError> {
+    let log: ball::Log = Arc::from(log);
     let table = net.table()?.to_string();
     if cal.cameras.len() < 2 {
         return Err(ZenohError::Invalid(format!(
@@ -368,10 +384,32 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
             SetGrouping::FrameId => 0,
             SetGrouping::Timestamp => period_ns / 2,
         },
-        log,
+        log: Box::new({
+            let log = log.clone();
+            move |s: &str| log(s)
+        }),
         counters: OnceLock::new(),
     });
     let session = net.open()?;
+    let ball_cameras: Vec<(String, u32)> = cal
+        .cameras
+        .iter()
+        .filter(|c| c.ball.is_some())
+        .map(|c| (c.name.clone(), c.index))
+        .collect();
+    let ball_fusion = if ball_cameras.is_empty() {
+        None
+    } else {
+        Some(ball::BallFusion::start(
+            &session,
+            &table,
+            ball_cameras,
+            options.loss_periods.ceil() as u64,
+            options.publish.then_some(net.format),
+            ball,
+            log.clone(),
+        )?)
+    };
     let grouping = match options.grouping {
         SetGrouping::FrameId => Grouping::FrameId,
         SetGrouping::Timestamp => Grouping::Timestamp {
@@ -546,7 +584,9 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
     done.store(true, Ordering::SeqCst);
     let _ = monitor.join();
     drop(subscriber);
+    let ball_report = ball_fusion.map(ball::BallFusion::finish).transpose();
     let (report, sink) = result?;
+    let ball = ball_report?;
     let cameras = watch
         .cameras
         .iter()
@@ -569,6 +609,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
             sets_published: sink.sets_published,
             publish_errors: sink.publish_errors,
             first_publish_error: sink.first_publish_error,
+            ball,
         },
         sink.inner,
     ))

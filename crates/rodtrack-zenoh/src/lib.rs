@@ -14,11 +14,14 @@
 //! | `rodtrack/<table>/cam/<camera>/raw` | the camera's measured rows, the fusion's input; an `end` message when its run ends | `layout` |
 //! | `rodtrack/<table>/cam/<camera>/status` | the camera node's counters, once a second | JSON |
 //! | `rodtrack/<table>/cam/<camera>/preview` | a downscaled image of the camera's latest frame, a few per second (`--preview-fps`) | `preview` |
+//! | `rodtrack/<table>/cam/<camera>/ball` | the camera's ball rows with their uncertainty, one message per frame (`track --zenoh-ball`) | `ball_layout` |
 //! | `rodtrack/<table>/fused/rows` | the fused rows of each frame set, with the set's completeness | `layout` |
+//! | `rodtrack/<table>/fused/ball` | each frame's ball rows: the cameras' and the fused one | `ball_layout` |
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
 //!
 //! Layout:
 //! - `layout`: the messages (binary layout version 1 and its JSON variant), no zenoh in it;
+//! - `ball_layout`: the ball's messages (the same, for ball rows), no zenoh in it;
 //! - `net`: the zenoh session from the command line's endpoints or a zenoh config file, the
 //!   key expressions, publishing;
 //! - `camera`: a camera node (a sink and hooks for an SDK `Session`);
@@ -31,6 +34,8 @@
 //! - `subscriber`: a program's subscriber to the rows (the fused rows of a table), decoded
 //!   (the example `fused_subscriber` prints each rod's fused position through it).
 
+#[cfg(feature = "zenoh")]
+pub mod ball_layout;
 #[cfg(feature = "zenoh")]
 pub mod camera;
 #[cfg(feature = "zenoh")]

@@ -1,7 +1,8 @@
 //! The zenoh session of a node, its key expressions and its publishers.
 
 use crate::layout::{self, Header, Kind};
-use crate::ZenohError;
+use crate::{ball_layout, ZenohError};
+use rodtrack_core::ball::BallRow;
 use rodtrack_core::Measurement;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -141,7 +142,8 @@ pub struct RowPublisher {
     publisher: Publisher<'static>,
     format: WireFormat,
     seq: AtomicU32,
-    buf: Mutex<Vec<u8>>,
+    /// The message's bytes, and the ball's UDP rows on the way.
+    buf: Mutex<(Vec<u8>, Vec<u8>)>,
 }
 
 impl RowPublisher {
@@ -167,7 +169,7 @@ impl RowPublisher {
             publisher,
             format,
             seq: AtomicU32::new(0),
-            buf: Mutex::new(Vec::with_capacity(4096)),
+            buf: Mutex::new((Vec::with_capacity(4096), Vec::new())),
         })
     }
 
@@ -175,10 +177,11 @@ impl RowPublisher {
     /// number is the publisher's).
     pub fn publish(&self, mut header: Header, rows: &[Measurement]) -> Result<(), ZenohError> {
         header.seq = self.seq.fetch_add(1, Ordering::Relaxed);
-        let mut buf = self.buf.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = self.buf.lock().unwrap_or_else(|e| e.into_inner());
+        let buf = &mut guard.0;
         match self.format {
-            WireFormat::Binary => layout::encode(&header, rows, &mut buf)?,
-            WireFormat::Json => layout::encode_json(&header, rows, &mut buf)?,
+            WireFormat::Binary => layout::encode(&header, rows, buf)?,
+            WireFormat::Json => layout::encode_json(&header, rows, buf)?,
         }
         self.publisher
             .put(buf.as_slice())
@@ -214,6 +217,21 @@ impl RowPublisher {
             }
         }
         first
+    }
+
+    /// Publishes one ball message of `rows` with their uncertainties (`ball_layout`).
+    pub fn publish_ball(&self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), ZenohError> {
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        let mut guard = self.buf.lock().unwrap_or_else(|e| e.into_inner());
+        let (buf, scratch) = &mut *guard;
+        match self.format {
+            WireFormat::Binary => ball_layout::encode_ball(seq, rows, sigma_mm, scratch, buf)?,
+            WireFormat::Json => ball_layout::encode_ball_json(seq, rows, sigma_mm, buf),
+        }
+        self.publisher
+            .put(buf.as_slice())
+            .wait()
+            .map_err(|e| ZenohError::zenoh(format!("publishing on {}", self.key()), e))
     }
 
     /// Publishes a JSON text as it is (status messages).

@@ -33,6 +33,11 @@ pub struct Args {
     /// Output format; by default from the file extension (`.jsonl` is JSON Lines, else CSV).
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
+    /// Write the ball's rows (the camera nodes' `--zenoh-ball` rows, each camera's and the
+    /// fused one per frame) to this file: CSV, or JSON Lines for `.jsonl`, as `track
+    /// --ball-out`. With --publish they go on `rodtrack/<table>/fused/ball` too.
+    #[arg(long)]
+    pub ball_out: Option<PathBuf>,
     /// Publish the fused rows on `rodtrack/<table>/fused/rows`.
     #[arg(long, value_enum)]
     pub publish: Option<NetworkArg>,
@@ -70,6 +75,10 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(out) = &args.out {
         rodtrack_sdk::check_out_is_not_an_input(out, &[&args.calib])?;
+    }
+    if let Some(b) = &args.ball_out {
+        let out = args.out.clone().unwrap_or_default();
+        rodtrack_sdk::check_out_is_not_an_input(b, &[&args.calib, &out])?;
     }
     if let Some(m) = &args.mcap {
         let out = args.out.clone().unwrap_or_default();
@@ -139,11 +148,34 @@ fn run_node(args: Args) -> Result<()> {
             String::new()
         }
     );
+    let ball: Option<Box<dyn rodtrack_io::BallSink>> = match &args.ball_out {
+        Some(path) => {
+            if cal.cameras.iter().all(|c| c.ball.is_none()) {
+                bail!(
+                    "--ball-out {}: no camera of {} has a ball calibration (`[cameras.ball]`)",
+                    path.display(),
+                    args.calib.display()
+                );
+            }
+            let created: Result<Box<dyn rodtrack_io::BallSink>, _> =
+                match RowFormat::from_path(path) {
+                    RowFormat::Csv => {
+                        rodtrack_io::BallCsvSink::create(path).map(|s| Box::new(s) as _)
+                    }
+                    RowFormat::Jsonl => {
+                        rodtrack_io::BallJsonlSink::create(path).map(|s| Box::new(s) as _)
+                    }
+                };
+            Some(created.with_context(|| format!("creating the ball output {}", path.display()))?)
+        }
+        None => None,
+    };
     let (report, sink) = run_fusion(
         &cal,
         &net,
         &options,
         sink,
+        ball,
         stop,
         Box::new(|msg: &str| eprintln!("{msg}")),
     )
@@ -159,7 +191,7 @@ fn run_node(args: Args) -> Result<()> {
             report.pipeline.first_sink_error.as_deref().unwrap_or("?")
         );
     }
-    if let Some(out) = &args.out {
+    for out in args.out.iter().chain(&args.ball_out) {
         println!("wrote {}", out.display());
     }
     Ok(())

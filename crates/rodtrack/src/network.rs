@@ -103,6 +103,14 @@ pub fn node_sink(node: &Node) -> Box<dyn MeasurementSink> {
     match *node {}
 }
 
+/// The ball sink that publishes the camera's ball rows on `.../ball`.
+pub fn node_ball_sink(node: &Node) -> Box<dyn rodtrack_io::BallSink> {
+    #[cfg(feature = "zenoh")]
+    return Box::new(node.ball_sink());
+    #[cfg(not(feature = "zenoh"))]
+    match *node {}
+}
+
 /// The hooks that publish the measured rows and the status, then call `inner`.
 pub fn node_hooks(node: &Node, inner: Arc<dyn Hooks>) -> Arc<dyn Hooks> {
     #[cfg(feature = "zenoh")]

@@ -92,6 +92,10 @@ pub struct Args {
     /// frame on `rodtrack/<table>/cam/<camera>/preview`, for remote consoles); 0: none.
     #[arg(long, default_value_t = 2.0)]
     pub preview_fps: f64,
+    /// With --publish: track the ball too and publish its rows, with their uncertainty, on
+    /// `rodtrack/<table>/cam/<camera>/ball` (the fusion node fuses them per frame).
+    #[arg(long, requires = "publish")]
+    pub zenoh_ball: bool,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: crate::network::NetArgs,
@@ -260,8 +264,12 @@ pub fn run(args: Args) -> Result<()> {
     let mut session = Session::open(&cal, &args.inputs, options)?;
     // The ball is tracked for --ball-out or --events-out; its rows go to the file, and with
     // --udp to the stream too, as datagrams of their own (`RTBL`).
-    if args.ball_out.is_some() || args.events_out.is_some() {
+    let ball_on_network = args.zenoh_ball && node.is_some();
+    if args.ball_out.is_some() || args.events_out.is_some() || ball_on_network {
         let mut sink = rodtrack_io::BallMultiSink::new();
+        if let (Some(n), true) = (&node, ball_on_network) {
+            sink.push(crate::network::node_ball_sink(n));
+        }
         if let Some(path) = &args.ball_out {
             // CSV, or JSON Lines for `.jsonl` / `.json`, as the rods' rows.
             let created: Result<Box<dyn rodtrack_io::BallSink>, _> =

@@ -12,6 +12,14 @@ use std::sync::{Arc, Mutex};
 pub trait BallSink: Send {
     /// Writes rows (in frame order, cameras in index order within a frame).
     fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError>;
+    /// Writes rows with each row's position standard deviation per axis, mm
+    /// ([`rodtrack_core::ball::BallTracker::row_sigma_mm`]; infinite for a `lost` row, NaN
+    /// where not known, as for `fused` rows): what fusing cameras elsewhere weighs them by.
+    /// A sink that does not carry it writes the rows alone (the default).
+    fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
+        let _ = sigma_mm;
+        self.write(rows)
+    }
     /// Pushes buffered rows to their destination.
     fn flush(&mut self) -> Result<(), IoError>;
 }
@@ -182,6 +190,9 @@ impl BallSink for BallVecSink {
 impl<S: BallSink + ?Sized> BallSink for Box<S> {
     fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
         (**self).write(rows)
+    }
+    fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
+        (**self).write_sigma(rows, sigma_mm)
     }
     fn flush(&mut self) -> Result<(), IoError> {
         (**self).flush()

@@ -70,5 +70,17 @@ macro_rules! fan_out {
 }
 
 fan_out!(MeasurementSink, Measurement);
-fan_out!(BallSink, BallRow);
+
+impl BallSink for FanOut<dyn BallSink> {
+    fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
+        first_error(self.sinks.iter_mut().map(|s| s.write(rows)))
+    }
+    fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
+        first_error(self.sinks.iter_mut().map(|s| s.write_sigma(rows, sigma_mm)))
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        first_error(self.sinks.iter_mut().map(|s| s.flush()))
+    }
+}
+
 fan_out!(EventSink, BallEvent);

@@ -1,0 +1,201 @@
+//! The fusion node's ball: the camera nodes' ball rows (`.../cam/<camera>/ball`) put together
+//! per frame and fused exactly as in a session ([`BallSets`]), into the caller's ball sink and
+//! onto `rodtrack/<table>/fused/ball` (one message per frame: the cameras' rows, then the
+//! fused one). A camera that sends no ball rows (its node tracks no ball, or it is lost) is
+//! waited for at most the loss time in frames.
+
+use crate::ball_layout::decode_ball;
+use crate::net::{fused_key, RowPublisher};
+use crate::ZenohError;
+use rodtrack_core::ball::BallRow;
+use rodtrack_core::CameraId;
+use rodtrack_io::{BallSink, IoError};
+use rodtrack_sdk::{BallCounts, BallSets};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, RecvTimeoutError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+use zenoh::Wait;
+
+/// Logs a line (the fusion's `log` callback).
+pub(super) type Log = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// The ball's subscriber and the thread that fuses its rows.
+pub(super) struct BallFusion {
+    subscriber: zenoh::pubsub::Subscriber<()>,
+    done: Arc<AtomicBool>,
+    thread: JoinHandle<Result<BallCounts, String>>,
+    refused: Arc<AtomicU64>,
+}
+
+/// What the ball's part of a fusion run did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BallReport {
+    /// Rows written, by status.
+    pub counts: BallCounts,
+    /// Ball messages refused (malformed, of a camera the calibration does not have, a row of
+    /// another camera).
+    pub refused: u64,
+}
+
+/// The fused ball rows published on `.../fused/ball`, a message per frame, then the caller's.
+struct Out {
+    publisher: Option<RowPublisher>,
+    inner: Option<Box<dyn BallSink>>,
+}
+
+impl BallSink for Out {
+    fn write(&mut self, rows: &[BallRow]) -> Result<(), IoError> {
+        self.write_sigma(rows, &[])
+    }
+    fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
+        let mut first = Ok(());
+        if let Some(p) = &self.publisher {
+            let mut at = 0;
+            for run in rows.chunk_by(|a, b| a.frame == b.frame) {
+                let s = sigma_mm.get(at..at + run.len()).unwrap_or(&[]);
+                at += run.len();
+                if let Err(e) = p.publish_ball(run, s) {
+                    if first.is_ok() {
+                        first = Err(IoError::Net {
+                            addr: p.key().to_string(),
+                            source: std::io::Error::other(e.to_string()),
+                        });
+                    }
+                }
+            }
+        }
+        if let Some(s) = self.inner.as_mut() {
+            let r = s.write_sigma(rows, sigma_mm);
+            if first.is_ok() {
+                first = r;
+            }
+        }
+        first
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        self.inner.as_mut().map_or(Ok(()), |s| s.flush())
+    }
+}
+
+impl BallFusion {
+    /// Subscribes to the ball rows of `cameras` (name, index) of `table`; fuses them with a
+    /// lag of `lag_frames`, into `sink` and, with `publish`, onto `.../fused/ball`.
+    pub(super) fn start(
+        session: &zenoh::Session,
+        table: &str,
+        cameras: Vec<(String, u32)>,
+        lag_frames: u64,
+        publish: Option<crate::net::WireFormat>,
+        sink: Option<Box<dyn BallSink>>,
+        log: Log,
+    ) -> Result<BallFusion, ZenohError> {
+        let publisher = match publish {
+            Some(format) => Some(RowPublisher::declare(
+                session,
+                fused_key(table, "ball"),
+                format,
+            )?),
+            None => None,
+        };
+        let indices: Vec<u32> = cameras.iter().map(|c| c.1).collect();
+        let mut sets = BallSets::new(
+            &indices,
+            lag_frames,
+            Box::new(Out {
+                publisher,
+                inner: sink,
+            }),
+        );
+        let (tx, rx) = sync_channel::<(u32, Vec<(BallRow, f64)>)>(1024);
+        let refused = Arc::new(AtomicU64::new(0));
+        let prefix = format!("rodtrack/{table}/cam/");
+        let (sub_log, sub_refused) = (log.clone(), refused.clone());
+        let subscriber = session
+            .declare_subscriber(format!("{prefix}*/ball"))
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str();
+                let name = key
+                    .strip_prefix(&prefix)
+                    .and_then(|k| k.strip_suffix("/ball"))
+                    .unwrap_or(key);
+                let refuse = |why: String| {
+                    if sub_refused.fetch_add(1, Ordering::Relaxed) < 10 {
+                        sub_log(&format!("fusion: ball message on {key} refused: {why}"));
+                    }
+                };
+                let Some(&(_, index)) = cameras.iter().find(|c| c.0 == name) else {
+                    return refuse(format!(
+                        "camera {name:?} is not one of the calibration's with a ball"
+                    ));
+                };
+                let m = match decode_ball(&sample.payload().to_bytes()) {
+                    Ok(m) => m,
+                    Err(e) => return refuse(e.to_string()),
+                };
+                if let Some(r) = m
+                    .rows
+                    .iter()
+                    .find(|r| r.0.camera != CameraId::Camera(index))
+                {
+                    return refuse(format!(
+                        "a row of camera {} where the calibration has camera {index} ({name})",
+                        r.0.camera
+                    ));
+                }
+                if tx.try_send((index, m.rows)).is_err() {
+                    refuse("the ball fusion is behind: queue full, message dropped".into());
+                }
+            })
+            .wait()
+            .map_err(|e| ZenohError::zenoh("declaring the ball subscriber", e))?;
+        let done = Arc::new(AtomicBool::new(false));
+        let stop = done.clone();
+        let thread = std::thread::Builder::new()
+            .name("rodtrack-fusion-ball".into())
+            .spawn(move || {
+                loop {
+                    match rx.recv_timeout(Duration::from_millis(20)) {
+                        Ok((camera, rows)) => {
+                            for (row, sigma) in rows {
+                                sets.push(camera, row, sigma);
+                            }
+                        }
+                        Err(RecvTimeoutError::Timeout) if !stop.load(Ordering::SeqCst) => {}
+                        Err(_) => break,
+                    }
+                }
+                // What came before the stop, then the rest written.
+                while let Ok((camera, rows)) = rx.try_recv() {
+                    for (row, sigma) in rows {
+                        sets.push(camera, row, sigma);
+                    }
+                }
+                sets.finish().map_err(|e| e.to_string())
+            })
+            .map_err(|e| ZenohError::Invalid(format!("cannot start the ball thread: {e}")))?;
+        Ok(BallFusion {
+            subscriber,
+            done,
+            thread,
+            refused,
+        })
+    }
+
+    /// Stops, writes what is pending, and reports (or the sink's first error).
+    pub(super) fn finish(self) -> Result<BallReport, ZenohError> {
+        let refused = self.refused.clone();
+        drop(self.subscriber);
+        self.done.store(true, Ordering::SeqCst);
+        let counts = self
+            .thread
+            .join()
+            .map_err(|_| ZenohError::Invalid("the ball thread panicked".into()))?
+            .map_err(ZenohError::Invalid)?;
+        Ok(BallReport {
+            counts,
+            refused: refused.load(Ordering::Relaxed),
+        })
+    }
+}
