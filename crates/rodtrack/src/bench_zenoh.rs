@@ -71,6 +71,10 @@ pub struct Args {
     /// send to the fusion node only).
     #[arg(long)]
     pub no_breakdown: bool,
+    /// The camera nodes' `--preview-fps` (downscaled frames for remote consoles; each one is a
+    /// copy and a downscale of a whole frame beside the tracking). Default: the nodes' own.
+    #[arg(long)]
+    pub preview_fps: Option<f64>,
     /// The table's name in the key expressions.
     #[arg(long, default_value = "bench")]
     pub table: String,
@@ -393,25 +397,29 @@ pub fn run(args: Args) -> Result<()> {
             args.seed,
             n = args.prerender
         );
+        let mut node_args = s(&[
+            "track",
+            "--calib",
+            &calib_arg,
+            "--camera",
+            name,
+            "--input",
+            &input,
+            "--max-frames",
+            &args.frames.to_string(),
+            "--publish",
+            "zenoh",
+            "--zenoh-connect",
+            &endpoint,
+            "--table",
+            &args.table,
+        ]);
+        if let Some(fps) = args.preview_fps {
+            node_args.extend(["--preview-fps".to_string(), fps.to_string()]);
+        }
         cameras.push(Node::start(
             &format!("camera node {name}"),
-            &s(&[
-                "track",
-                "--calib",
-                &calib_arg,
-                "--camera",
-                name,
-                "--input",
-                &input,
-                "--max-frames",
-                &args.frames.to_string(),
-                "--publish",
-                "zenoh",
-                "--zenoh-connect",
-                &endpoint,
-                "--table",
-                &args.table,
-            ]),
+            &node_args,
             dir.path.join(format!("{name}.log")),
         )?);
     }
