@@ -355,6 +355,32 @@ impl CurveModel {
         }
     }
 
+    /// The same path through its point at `lambda_c`, turned to run towards the vanishing
+    /// point of the 3-D direction `dir` (camera frame): the image of a line parallel to `dir`
+    /// through that point. `lambda` keeps its meaning along the path (to first order). `None`
+    /// for a polynomial path, or when `dir` points at the camera through that point.
+    pub fn toward_vanishing(&self, dir: [f64; 3], lambda_c: f64) -> Option<CurveModel> {
+        let CurveModel::Camera { intrinsics, n0, d } = self else {
+            return None;
+        };
+        let p = [n0[0] + lambda_c * d[0], n0[1] + lambda_c * d[1]];
+        // The point p + t (dir_xy - p dir_z) / ... : the image of p's ray moved along dir.
+        let mut nd = [dir[0] - p[0] * dir[2], dir[1] - p[1] * dir[2]];
+        let len = nd[0].hypot(nd[1]);
+        if len.is_nan() || len <= 1e-9 {
+            return None;
+        }
+        if nd[0] * d[0] + nd[1] * d[1] < 0.0 {
+            nd = [-nd[0], -nd[1]];
+        }
+        let nd = [nd[0] / len, nd[1] / len];
+        Some(CurveModel::Camera {
+            intrinsics: *intrinsics,
+            n0: [p[0] - lambda_c * nd[0], p[1] - lambda_c * nd[1]],
+            d: nd,
+        })
+    }
+
     /// A short name for reports.
     pub fn kind(&self) -> &'static str {
         match self {

@@ -66,6 +66,13 @@ pub struct EnhancedParams {
     /// their own drift.
     #[serde(default = "default_true", skip_serializing_if = "is_true")]
     pub learn_centre_slope: bool,
+    /// With a camera model: the rod's own perspective `r / D` (its radius over the distance
+    /// from the camera centre to its axis at the reference pose). The knots' radius is then
+    /// the lens' projection of the cylinder, and the phase samples the print across the rod
+    /// through this perspective instead of learning the radius from the silhouettes. Absent
+    /// without a camera model (the radius is then measured and refined while tracking).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens_perspective: Option<f64>,
 }
 
 fn default_true() -> bool {
@@ -330,6 +337,15 @@ impl RodCalibration {
         }
         finite("enhanced.phase_offset_steps", e.phase_offset_steps)?;
         finite("enhanced.angle_offset_rad", e.angle_offset_rad)?;
+        if let Some(rho) = e.lens_perspective {
+            // A rod seen from at least twice its radius away.
+            if !(rho.is_finite() && (0.0..=0.5).contains(&rho)) {
+                return Err(err(
+                    "enhanced.lens_perspective",
+                    format!("must be in 0..=0.5 (radius over distance), got {rho}"),
+                ));
+            }
+        }
         if let Some(p) = &self.paper {
             for (name, v) in [
                 ("paper.view_angle_deg", p.view_angle_deg),

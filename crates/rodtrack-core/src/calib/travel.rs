@@ -255,6 +255,23 @@ impl RodAxis {
         ]
     }
 
+    /// The cylinder's own perspective `r / D` at `s_mm`: its radius `radius_mm` over the
+    /// distance from the camera centre to the axis (the same all along the axis only when the
+    /// axis is square to the line of sight; the reference's value serves the marker). A
+    /// surface line at angle `t` from the one facing the camera is seen across the rod at
+    /// `R0 sin t / (1 - (r / D) cos t)`: the near side of the rod looks wider than the far.
+    pub fn perspective(&self, s_mm: f64, radius_mm: f64) -> Option<f64> {
+        let q = self.at(s_mm);
+        let qu = dot(q, self.u);
+        let w = [
+            q[0] - qu * self.u[0],
+            q[1] - qu * self.u[1],
+            q[2] - qu * self.u[2],
+        ];
+        let dist = dot(w, w).sqrt();
+        (dist > radius_mm && q[2] > 0.0).then(|| radius_mm / dist)
+    }
+
     /// The apparent half width, px, of a cylinder of radius `radius_mm` about the axis at
     /// `s_mm`, across the image line (normal `normal_px`, unit, in pixels): the two contour
     /// lines' points projected through the lens.

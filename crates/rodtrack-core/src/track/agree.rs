@@ -15,7 +15,9 @@
 
 use super::judge::fused_steps;
 use super::state::{EnhancedState, GrayRead, Intermediate, PhaseFit};
-use super::tuning::{CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, CODE_CHECK_SLOW_STEPS};
+use super::tuning::{
+    CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, CODE_CHECK_MAX_DELTA_DEG, CODE_CHECK_SLOW_STEPS,
+};
 use crate::angle::{step_index, wrap_steps_centred};
 use crate::calib::RodCalibration;
 use crate::frame::FrameView;
@@ -102,6 +104,9 @@ impl EnhancedState {
                 let off = gray_read.offsets[k as usize];
                 let (mut n, mut wrong) = (0u32, 0u32);
                 for j in (0..self.phase_delta.len()).step_by(CODE_CHECK_EVERY) {
+                    if self.phase_delta[j].0.abs() > CODE_CHECK_MAX_DELTA_DEG.to_radians() {
+                        continue;
+                    }
                     let (px, py) = lp.offset(0.0, e + rad * self.phase_delta[j].2);
                     if !frame.contains(px as f32, py as f32, 1.0) {
                         continue;

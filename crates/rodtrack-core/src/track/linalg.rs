@@ -11,6 +11,11 @@ pub(super) fn normal_inverse(table: &[(f64, f64, f64)]) -> [[f64; 3]; 3] {
             }
         }
     }
+    invert3(&g)
+}
+
+/// The inverse of a 3x3 matrix (zero when it is singular).
+pub(super) fn invert3(g: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     let det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1])
         - g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0])
         + g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);

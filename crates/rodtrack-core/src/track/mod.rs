@@ -49,7 +49,7 @@ use crate::CoreError;
 use paper::PaperState;
 use serde::{Deserialize, Serialize};
 use state::{EnhancedState, Intermediate};
-use tuning::{eps_of, MAX_MOTION_MM};
+use tuning::MAX_MOTION_MM;
 
 /// Which algorithm measures a rod.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -124,7 +124,11 @@ impl RodTracker {
     pub fn learnt(&self, s_mm: f64) -> (f64, f64, f64) {
         let st = &self.enhanced;
         let (offset, ratio) = st.centre.at(s_mm);
-        (offset, ratio, eps_of(st.eps_best))
+        (
+            offset,
+            ratio,
+            st.eps_values.get(st.eps_best).copied().unwrap_or(0.0),
+        )
     }
 
     /// The centre line learnt so far (diagnostics).

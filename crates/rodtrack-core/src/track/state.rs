@@ -7,8 +7,8 @@ use super::learners::{CentreFit, ScaleFit};
 use super::linalg::normal_inverse;
 use super::silhouette::silhouette_rings;
 use super::tuning::{
-    eps_of, CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, EDGE_HALF_CELLS, EDGE_SAMPLES_PER_CELL,
-    EPS_GRID, PHASE_SAMPLES_PER_PERIOD, SEARCH_MARGIN_MM,
+    eps_of, CODE_CHECK_EDGE_STEPS, CODE_CHECK_EVERY, CODE_CHECK_MAX_DELTA_DEG, EDGE_HALF_CELLS,
+    EDGE_SAMPLES_PER_CELL, EPS_GRID, PHASE_SAMPLES_PER_PERIOD, SEARCH_MARGIN_MM,
 };
 use crate::calib::RodCalibration;
 use crate::line::PreparedKnots;
@@ -47,8 +47,11 @@ pub(super) struct EnhancedState {
     pub(super) scale: ScaleFit,
     pub(super) profile: Vec<f32>,
     /// Phase sample angles `delta` (rad from the facing line): (delta, weight cos delta,
-    /// sin delta).
+    /// where the sample sits across the rod in knot radii: `sin delta`, or through the rod's
+    /// own perspective with the lens' radius).
     pub(super) phase_delta: Vec<(f64, f64, f64)>,
+    /// The radius corrections `eps` scored (one, 0, with the lens' radius).
+    pub(super) eps_values: Vec<f64>,
     /// Per radius correction `eps`: (weight, cos, sin) of `cycles * asin(sin(delta) / (1 + eps))`.
     pub(super) eps_tables: Vec<Vec<(f64, f64, f64)>>,
     /// Per `eps`: the inverse of the weighted normal matrix of the fit `v = m + a cos + b sin`
@@ -68,6 +71,8 @@ pub(super) struct EnhancedState {
     pub(super) eps_best: usize,
     /// Phase samples summed over the rows (scratch).
     pub(super) phase_v: Vec<f64>,
+    /// The print's contrast (white minus black) at each phase sample (scratch).
+    pub(super) phase_c: Vec<f64>,
     /// Marker `u` of the rows across white and black rings used to measure the shading.
     pub(super) white_u: Vec<f64>,
     pub(super) black_u: Vec<f64>,
@@ -89,6 +94,9 @@ pub(super) struct EnhancedState {
     /// Whether the learnt centre line moves the phase's lateral reference along the travel
     /// (calibration's `learn_centre_slope`).
     pub(super) centre_slope: bool,
+    /// Whether the knots' radius is the lens' projection of the cylinder (calibration's
+    /// `lens_perspective`): the silhouettes' radius ratio is then not applied.
+    pub(super) lens_radius: bool,
     /// The angle's bias along the travel measured by calibration (see
     /// [`EnhancedParams::angle_bias_rad`](crate::calib::EnhancedParams::angle_bias_rad)), and
     /// the print's direction around the rod (`phase_sign`).
@@ -235,13 +243,27 @@ impl EnhancedState {
         let periods = ((140f64.to_radians() / period).floor() as usize).max(1);
         let half = periods as f64 * period * 0.5;
         let count = periods * PHASE_SAMPLES_PER_PERIOD;
+        // Where across the rod (in knot radii) the surface line at angle `d` from the facing
+        // one is seen: `sin d` for a distant camera; with the lens' radius, through the rod's
+        // own perspective `rho = r / D` (`sqrt(1 - rho^2)` turns the knots' silhouette radius
+        // into the facing line's scale).
+        let lens = calib.enhanced.lens_perspective;
+        let across = |d: f64| match lens {
+            Some(rho) => (1.0 - rho * rho).sqrt() * d.sin() / (1.0 - rho * d.cos()),
+            None => d.sin(),
+        };
         let phase_delta: Vec<(f64, f64, f64)> = (0..count)
             .map(|j| {
                 let d = -half + (j as f64 + 0.5) * (2.0 * half / count as f64);
-                (d, d.cos(), d.sin())
+                (d, d.cos(), across(d))
             })
             .collect();
-        let eps_values: Vec<f64> = (0..EPS_GRID).map(eps_of).collect();
+        // With the lens' radius nothing is learnt: one table, the surface angles themselves.
+        let eps_values: Vec<f64> = if lens.is_some() {
+            vec![0.0]
+        } else {
+            (0..EPS_GRID).map(eps_of).collect()
+        };
         let eps_tables: Vec<Vec<(f64, f64, f64)>> = eps_values
             .iter()
             .map(|eps| {
@@ -296,6 +318,7 @@ impl EnhancedState {
             .iter()
             .step_by(CODE_CHECK_EVERY)
             .map(|p| p.0)
+            .filter(|d| d.abs() <= CODE_CHECK_MAX_DELTA_DEG.to_radians())
             .collect();
         let code_wrong_share =
             min_wrong_share_cached(marker.bits(), &checked, CODE_CHECK_EDGE_STEPS);
@@ -306,6 +329,7 @@ impl EnhancedState {
             ring_u,
             centre: CentreFit::default(),
             centre_slope: calib.enhanced.learn_centre_slope,
+            lens_radius: lens.is_some(),
             angle_bias: calib.enhanced.angle_bias_rad.clone(),
             phase_sign: calib.enhanced.phase_sign as f64,
             frames_seen: 0,
@@ -352,7 +376,9 @@ impl EnhancedState {
             eps_acc: vec![0.0; eps_values.len()],
             eps_z: vec![(0.0, 0.0); eps_values.len()],
             eps_best: eps_values.len() / 2,
+            eps_values,
             phase_v: vec![0.0; count],
+            phase_c: vec![0.0; count],
             phase_delta,
         }
     }
@@ -371,6 +397,7 @@ impl EnhancedState {
             .centre
             .run_between(reference_position_mm + c0, position_mm + c0);
         let offset_px = if self.centre_slope { run_px } else { 0.0 };
+        let radius_ratio = if self.lens_radius { 1.0 } else { radius_ratio };
         CentreAt {
             offset_px,
             radius_ratio,

@@ -73,6 +73,12 @@ pub(super) fn eps_of(i: usize) -> f64 {
 }
 /// Per-frame forgetting factor of the `eps` scores.
 pub(super) const EPS_FORGET: f64 = 0.995;
+/// The phase fit weighs each sample by the print's contrast there (white minus black, as the
+/// shading measured it) to this power, beside the `cos delta` taper: 2 makes it the inverse
+/// of the normalised sample's noise variance. On 10 simulated tables as built (known poses,
+/// raw rows) the angle std per camera, worst / median: power 0 2.64 / 1.78 mrad, 1 1.98 /
+/// 1.43, 2 1.79 / 1.34.
+pub(super) const CONTRAST_WEIGHT_POWER: i32 = 2;
 
 // ---------------------------------------------------------------- judge (step 6)
 
@@ -89,6 +95,12 @@ pub(super) const MIN_STRIPE_SHARE: f64 = 0.6;
 
 /// The code's check across the rod uses every this many phase samples.
 pub(super) const CODE_CHECK_EVERY: usize = 1;
+/// The code's check across the rod reads the print within this angle of the line facing the
+/// camera, deg: there the stripes are seen at least half as wide as face on (`cos 60 = 0.5`);
+/// nearer the limbs the print is squeezed into a pixel or two, dim and blurred with the
+/// background, and its samples vote by noise. (The phase's fit reads further out, each sample
+/// weighed by its contrast.)
+pub(super) const CODE_CHECK_MAX_DELTA_DEG: f64 = 60.0;
 /// Samples this near an edge of a bit space's pattern (in Gray steps) are not checked: the
 /// print's blur and the angle's own error (a tenth of a step) stay inside it.
 pub(super) const CODE_CHECK_EDGE_STEPS: f64 = 0.5;
