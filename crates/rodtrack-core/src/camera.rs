@@ -118,19 +118,22 @@ impl CameraIntrinsics {
     pub fn pixel_to_normalized(&self, u: f64, v: f64) -> (f64, f64) {
         let xd = (u - self.cx) / self.fx;
         let yd = (v - self.cy) / self.fy;
-        let (mut x, mut y) = (xd, yd);
+        // Start from one fixed-point step (the radial factor at the distorted point), then
+        // Newton with the model's own Jacobian: three or four steps to 1e-13.
+        let r2 = xd * xd + yd * yd;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let (mut x, mut y) = if radial > 0.2 {
+            (xd / radial, yd / radial)
+        } else {
+            (xd, yd)
+        };
         for _ in 0..30 {
-            let (fx, fy) = self.distort(x, y);
+            let (fx, fy, j) = self.distort_jacobian(x, y);
             let (ex, ey) = (fx - xd, fy - yd);
             if ex.abs() < 1e-13 && ey.abs() < 1e-13 {
                 break;
             }
-            // Numerical Jacobian: cheap and robust for this 2x2 system.
-            let h = 1e-7;
-            let (ax, ay) = self.distort(x + h, y);
-            let (bx, by) = self.distort(x, y + h);
-            let (j11, j21) = ((ax - fx) / h, (ay - fy) / h);
-            let (j12, j22) = ((bx - fx) / h, (by - fy) / h);
+            let [[j11, j12], [j21, j22]] = j;
             let det = j11 * j22 - j12 * j21;
             if det.abs() < 1e-12 {
                 break;
@@ -139,6 +142,21 @@ impl CameraIntrinsics {
             y -= (-j21 * ex + j11 * ey) / det;
         }
         (x, y)
+    }
+
+    /// [`CameraIntrinsics::distort`] and its Jacobian `d(xd, yd) / d(x, y)` at `(x, y)`.
+    pub fn distort_jacobian(&self, x: f64, y: f64) -> (f64, f64, [[f64; 2]; 2]) {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        // d radial / d r2.
+        let dr = self.k1 + r2 * (2.0 * self.k2 + 3.0 * r2 * self.k3);
+        let xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
+        let yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
+        let j11 = radial + 2.0 * x * x * dr + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
+        let j12 = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+        let j21 = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+        let j22 = radial + 2.0 * y * y * dr + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
+        (xd, yd, [[j11, j12], [j21, j22]])
     }
 }
 
@@ -277,6 +295,53 @@ mod tests {
             let (x, y) = k.pixel_to_normalized(u, v);
             let (u2, v2) = k.normalized_to_pixel(x, y);
             prop_assert!((u - u2).abs() < 1e-6 && (v - v2).abs() < 1e-6);
+        }
+    }
+
+    /// The plain inverse: Newton from the distorted point with a numerical Jacobian.
+    fn undistort_reference(k: &CameraIntrinsics, u: f64, v: f64) -> (f64, f64) {
+        let (xd, yd) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
+        let (mut x, mut y) = (xd, yd);
+        for _ in 0..100 {
+            let (fx, fy) = k.distort(x, y);
+            let (ex, ey) = (fx - xd, fy - yd);
+            let h = 1e-7;
+            let (ax, ay) = k.distort(x + h, y);
+            let (bx, by) = k.distort(x, y + h);
+            let (j11, j21) = ((ax - fx) / h, (ay - fy) / h);
+            let (j12, j22) = ((bx - fx) / h, (by - fy) / h);
+            let det = j11 * j22 - j12 * j21;
+            x -= (j22 * ex - j12 * ey) / det;
+            y -= (-j21 * ex + j11 * ey) / det;
+        }
+        (x, y)
+    }
+
+    proptest! {
+        #[test]
+        fn the_jacobian_is_the_distortions_derivative(x in -0.8f64..0.8, y in -0.6f64..0.6) {
+            let k = strong();
+            let (xd, yd, j) = k.distort_jacobian(x, y);
+            prop_assert_eq!((xd, yd), k.distort(x, y));
+            let h = 1e-6;
+            let (ax, ay) = k.distort(x + h, y);
+            let (bx, by) = k.distort(x, y + h);
+            let (cx, cy) = k.distort(x - h, y);
+            let (dx, dy) = k.distort(x, y - h);
+            let num = [[(ax - cx) / (2.0 * h), (bx - dx) / (2.0 * h)], [(ay - cy) / (2.0 * h), (by - dy) / (2.0 * h)]];
+            for i in 0..2 {
+                for c in 0..2 {
+                    prop_assert!((j[i][c] - num[i][c]).abs() < 1e-7, "{:?} {:?}", j, num);
+                }
+            }
+        }
+
+        #[test]
+        fn undistort_matches_the_plain_newton(u in 0.0f64..1440.0, v in 0.0f64..1080.0) {
+            let k = strong();
+            let (x, y) = k.pixel_to_normalized(u, v);
+            let (xr, yr) = undistort_reference(&k, u, v);
+            prop_assert!((x - xr).abs() < 1e-12 && (y - yr).abs() < 1e-12);
         }
     }
 

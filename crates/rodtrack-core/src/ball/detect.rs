@@ -4,8 +4,8 @@
 
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::tuning::{
-    AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS, N_RAYS,
-    RESIDUAL_RATIO_MAX, WINDOW_RADII,
+    AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS,
+    NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX, WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -279,20 +279,24 @@ impl BallDetector {
             if let Some(r) = expected_radius_px(&self.cam, u, v, self.radius_mm) {
                 let rq = 0.5 * r;
                 let (cx, cy) = ((u - 0.5) / 2.0, (v - 0.5) / 2.0);
-                let h = WINDOW_RADII * rq + 2.0;
-                let region = [
-                    (cx - h).floor().max(self.field_q[0] as f64) as usize,
-                    (cy - h).floor().max(self.field_q[1] as f64) as usize,
-                    ((cx + h).ceil().max(0.0) as usize).min(self.field_q[2]),
-                    ((cy + h).ceil().max(0.0) as usize).min(self.field_q[3]),
-                ];
                 let step = ((rq / 4.0).floor() as usize).clamp(1, 2);
-                if region[2] > region[0] && region[3] > region[1] {
-                    if !self.plain {
-                        touch_rows(view, region, step);
-                    }
-                    if let Some(d) = self.scan_and_fit(view, region, step) {
-                        return Some(d);
+                // First the ball where the prediction puts it (a rolling ball is within a
+                // fraction of its radius of it), then the window a bounce can reach.
+                for radii in [NEAR_WINDOW_RADII, WINDOW_RADII] {
+                    let h = radii * rq + 2.0;
+                    let region = [
+                        (cx - h).floor().max(self.field_q[0] as f64) as usize,
+                        (cy - h).floor().max(self.field_q[1] as f64) as usize,
+                        ((cx + h).ceil().max(0.0) as usize).min(self.field_q[2]),
+                        ((cy + h).ceil().max(0.0) as usize).min(self.field_q[3]),
+                    ];
+                    if region[2] > region[0] && region[3] > region[1] {
+                        if !self.plain {
+                            touch_rows(view, region, step);
+                        }
+                        if let Some(d) = self.scan_and_fit(view, region, step) {
+                            return Some(d);
+                        }
                     }
                 }
             }
@@ -423,7 +427,7 @@ impl BallDetector {
             return None;
         }
         // Not negative: the integer part is the floor.
-        let (ix, iy) = (x_q as usize, y_q as usize);
+        let (ix, iy) = (x_q as i64 as usize, y_q as i64 as usize);
         if ix >= self.qw.saturating_sub(1) || iy >= self.qh.saturating_sub(1) {
             return None;
         }

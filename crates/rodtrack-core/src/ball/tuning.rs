@@ -20,6 +20,11 @@ pub const MIN_OCTANTS: usize = 3;
 pub const RESIDUAL_RATIO_MAX: f64 = 0.1;
 /// Half size of the tracking window, in the ball's expected image radii.
 pub const WINDOW_RADII: f64 = 3.0;
+/// Half size of the window searched first, in the ball's expected image radii: the ball
+/// whole with half a radius of the prediction's error to spare (a ball rolling at 2 m/s moves
+/// 10 mm in a frame at 200 fps, and the filter predicts it to about a millimetre); only when
+/// that finds no ball is the [`WINDOW_RADII`] window searched.
+pub const NEAR_WINDOW_RADII: f64 = 1.5;
 /// How long the filter predicts a ball it does not see before reporting it lost, s.
 pub const PREDICT_S: f64 = 0.1;
 /// White acceleration of the constant-velocity filter, mm/s^2 (about 1 g: rolling, spin and
