@@ -8,6 +8,8 @@
 //! - [`quality`]: what a row's quality says about its error, over many random tables
 //!   ([`quality::run_table`], [`quality::bands`]).
 //! - [`run`]: the scenarios run and scored ([`run::run_plans`]).
+//! - [`tables`]: accuracy over random tables as built, worst and median camera
+//!   ([`tables::run_tables`]).
 //! - [`report`]: the Markdown report, `summary.json` and the plots ([`report::write_report`]),
 //!   drawn by [`figures`] with [`plots`].
 
@@ -21,6 +23,7 @@ pub mod report;
 pub mod run;
 pub mod score;
 pub mod sim_run;
+pub mod tables;
 
 pub use error::{error_chain, EvalError};
 

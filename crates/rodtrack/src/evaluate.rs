@@ -32,6 +32,11 @@ pub struct Args {
     /// Scenarios run at once (default: the number of CPUs, at most 4).
     #[arg(long)]
     pub jobs: Option<usize>,
+    /// Random tables as built (`asbuilt:1` to `asbuilt:N`, `poses` scenario, with and without
+    /// known poses) scored per camera, worst and median, into `tables.md` and `tables.json`
+    /// (default 10, 2 with --quick; 0 skips them).
+    #[arg(long)]
+    pub tables: Option<u64>,
 }
 
 /// Runs the command.
@@ -78,6 +83,46 @@ pub fn run(args: Args) -> Result<()> {
         },
     )?;
     print!("{}", report.headline);
+    let n_tables = args.tables.unwrap_or(if args.quick { 2 } else { 10 });
+    if n_tables > 0 {
+        let seeds: Vec<u64> = (1..=n_tables).collect();
+        eprintln!("rodtrack evaluate: {n_tables} tables as built, with and without known poses");
+        let work = args.out.join("tables-work");
+        let mut tables = Vec::new();
+        for known in [true, false] {
+            tables.push(
+                rodtrack_eval::tables::run_tables(&seeds, known, &work)
+                    .context("the tables as built")?,
+            );
+        }
+        let _ = std::fs::remove_dir_all(&work);
+        let md = rodtrack_eval::tables::format_tables(&tables);
+        let (md_path, json_path) = (args.out.join("tables.md"), args.out.join("tables.json"));
+        std::fs::write(&md_path, &md)
+            .with_context(|| format!("cannot write {}", md_path.display()))?;
+        std::fs::write(&json_path, serde_json::to_string_pretty(&tables)?)
+            .with_context(|| format!("cannot write {}", json_path.display()))?;
+        for t in &tables {
+            println!(
+                "tables as built ({} known poses), per camera, worst / median: coverage {:.3} / \
+                 {:.3}, position std {:.4} / {:.4} mm, max {:.3} / {:.3} mm, angle std {:.4} / \
+                 {:.4} rad, max {:.4} / {:.4} rad, {} gross",
+                if t.known_poses { "with" } else { "without" },
+                t.worst.coverage,
+                t.median.coverage,
+                t.worst.pos_std_mm,
+                t.median.pos_std_mm,
+                t.worst.pos_max_mm,
+                t.median.pos_max_mm,
+                t.worst.ang_std_rad,
+                t.median.ang_std_rad,
+                t.worst.ang_max_rad,
+                t.median.ang_max_rad,
+                t.gross
+            );
+        }
+        println!("wrote {}", md_path.display());
+    }
     println!(
         "wrote {} and {} plots in {:.1} s",
         args.out.join("report.md").display(),
