@@ -229,6 +229,19 @@ impl Simulation {
         })
     }
 
+    /// Renders the markers with `n x n` point rays per pixel (each the print where its ray
+    /// meets the rod, none the mean over an area) instead of the pixel's whole area: as a ray
+    /// tracer with a few rays per pixel renders, and as a sensor whose pixels see less than
+    /// their whole area (a fill factor below 1) samples. The print's edges then move in the
+    /// image in steps of `1 / n` px, and their positions alias with the pixel grid; the
+    /// tracker's angle must average that over many edges. `n` is at least 1.
+    pub fn with_point_rays(mut self, n: usize) -> Self {
+        for r in &mut self.renderers {
+            r.point_rays = Some(n.max(1));
+        }
+        self
+    }
+
     /// Sets the seed of the sensor noise (same seed, same bytes).
     pub fn with_seed(mut self, seed: u64) -> Self {
         self.ctx.seed = seed;

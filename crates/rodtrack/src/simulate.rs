@@ -41,6 +41,11 @@ pub struct Args {
     /// shifted and with other lenses, rods off their places, print seams; drawn from SEED).
     #[arg(long, default_value = "default")]
     pub setup: String,
+    /// Render the markers with N x N point rays per pixel instead of each pixel's whole area
+    /// (as a ray tracer with a few rays per pixel, or a sensor with a small fill factor: the
+    /// print's edges then alias with the pixel grid).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub point_rays: Option<u8>,
 }
 
 /// Runs the command.
@@ -52,6 +57,9 @@ pub fn run(args: Args) -> Result<()> {
         args.quality,
         &args.setup,
     )?;
+    if let Some(n) = args.point_rays {
+        sim = sim.with_point_rays(n as usize);
+    }
     let opts = RecordOptions {
         every: args.every,
         calib_seed: args.seed,

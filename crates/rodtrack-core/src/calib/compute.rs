@@ -7,11 +7,12 @@
 use super::file::{EnhancedParams, PaperParams, Residuals, RodCalibration};
 use super::inputs::{KnownPose, RodInputs};
 use super::kernel_search::{barcode_kernel, paper_kernel_search};
+use super::known::{read_back_known_poses, Reference};
 use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
 };
 use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
-use crate::angle::{wrap_2pi, wrap_pi, wrap_step_diff, wrap_steps};
+use crate::angle::{wrap_2pi, wrap_step_diff, wrap_steps};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::{fit_line_tls, CurveModel, Knots, PaperLine};
@@ -501,60 +502,16 @@ pub fn calibrate_rod_with(
     if travel_model == "known_poses" {
         cal.enhanced.learn_centre_slope = false;
     }
-    let mut bias: Vec<[f64; 2]> = Vec::new();
-    for (kp, kframe) in extras.known {
-        let mut t = RodTracker::new(&cal, kframe.width(), kframe.height(), Mode::Enhanced)?;
-        let r = t.process(kframe)?;
-        if r.status == crate::Status::Ok {
-            cal.residuals
-                .known_pose_errors_mm
-                .push([kp.frame as f64, r.position_mm - kp.position_mm]);
-            if let Some(a) = kp.angle_rad {
-                let b = wrap_pi(r.angle_rad - a);
-                if b.abs() <= MAX_ANGLE_BIAS_RAD {
-                    bias.push([kp.position_mm, b]);
-                } else {
-                    cal.residuals.warnings.push(format!(
-                        "known pose in frame {}: angle read {b:+.3} rad off the one given; \
-                         check the pose (not used for the angle)",
-                        kp.frame
-                    ));
-                }
-            }
-        } else {
-            cal.residuals.warnings.push(format!(
-                "known pose in frame {} reads as {}",
-                kp.frame, r.status
-            ));
-        }
-    }
-    if !bias.is_empty() {
-        bias.push([s_ref, 0.0]);
-        cal.enhanced.angle_bias_rad = merge_bias_points(bias);
-    }
+    read_back_known_poses(
+        &mut cal,
+        extras.known,
+        &Reference {
+            marker: &marker,
+            frame,
+            angle_rad: inputs.reference.angle_rad,
+        },
+    )?;
     Ok(cal)
-}
-
-/// The most a known pose's angle may be off before it is taken as a wrong pose rather than
-/// a bias (a pixel of centre line across an 11 px radius is 0.09 rad; the biases measured are
-/// a few hundredths of that).
-const MAX_ANGLE_BIAS_RAD: f64 = 0.05;
-
-/// Bias points sorted by position, those within 1 mm of each other averaged.
-fn merge_bias_points(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    pts.sort_by(|a, b| a[0].total_cmp(&b[0]));
-    let mut out: Vec<([f64; 2], f64)> = Vec::new();
-    for p in pts {
-        match out.last_mut() {
-            Some((q, n)) if (p[0] - q[0] / *n).abs() <= 1.0 => {
-                q[0] += p[0];
-                q[1] += p[1];
-                *n += 1.0;
-            }
-            _ => out.push((p, 1.0)),
-        }
-    }
-    out.into_iter().map(|(q, n)| [q[0] / n, q[1] / n]).collect()
 }
 
 /// Least squares `y = a + b x` over `(x, y)`; returns `(a, b, rms)`.

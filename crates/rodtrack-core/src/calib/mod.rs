@@ -9,6 +9,7 @@ pub mod find;
 mod image_size;
 pub mod inputs;
 mod kernel_search;
+mod known;
 pub mod opencv;
 pub mod rods;
 mod silhouette;

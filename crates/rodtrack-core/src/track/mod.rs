@@ -24,6 +24,7 @@ mod paper;
 mod phase;
 mod prefetch;
 mod quality;
+mod refine;
 mod result;
 mod shading;
 mod silhouette;
@@ -258,6 +259,7 @@ impl RodTracker {
         let ph = st.phase(m, calib.reference_position_mm, frame, &inter);
         let gray = st.gray_code(m, frame, &inter, ph.mean);
         let check = st.code_check(m, calib, frame, &inter, &gray, &ph);
+        let check = st.refine(m, calib, frame, &inter, &gray, check);
         st.judge(m, calib, &inter, &gray, &ph, &check)
     }
 

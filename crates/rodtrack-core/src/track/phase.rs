@@ -3,7 +3,9 @@
 
 use super::linalg::invert3;
 use super::state::{EnhancedState, Intermediate, PhaseFit};
-use super::tuning::{CONTRAST_WEIGHT_POWER, EPS_FORGET, EPS_LEARN_FRAMES, EPS_RESCORE_EVERY};
+use super::tuning::{
+    CONTRAST_WEIGHT_POWER, EPS_FORGET, EPS_LEARN_FRAMES, EPS_RESCORE_EVERY, PHASE_ROWS,
+};
 use crate::calib::angle_bias_at;
 use crate::frame::FrameView;
 use crate::line::LinePoint;
@@ -35,7 +37,7 @@ impl EnhancedState {
         // misses there by up to a fifth where the light falls off towards a limb, and the
         // energy's best `eps` is not the unbiased one (10 tables as built: angle std per
         // camera, worst / median, 2.31 / 2.04 mrad learnt, 2.64 / 1.78 lens).
-        let rows = [-0.25, 0.0, 0.25];
+        let rows = PHASE_ROWS;
         let n_eps = st.eps_tables.len();
         // The rows' raw samples summed per angle, then normalised to the print's own white (1)
         // and black (0) at that angle.

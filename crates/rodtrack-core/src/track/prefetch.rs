@@ -2,7 +2,7 @@
 //! rod of the frame is measured.
 
 use super::state::EnhancedState;
-use super::tuning::{GRAY_SAMPLES, QUIET_SAMPLES, SEARCH_WINDOWS_MM};
+use super::tuning::{GRAY_SAMPLES, PHASE_ROWS, QUIET_SAMPLES, SEARCH_WINDOWS_MM};
 use crate::frame::FrameView;
 use crate::marker::Marker;
 
@@ -31,9 +31,13 @@ impl EnhancedState {
             m.length_mm() + 1.0,
             gray_across,
         );
-        let (c0, half0) = (m.bit_space_centre_mm(0), 0.25 * m.bit_space_mm() + 1.0);
-        // The learnt centre and radius move the phase's samples by a fraction of a radius.
-        touch(c0 - half0, c0 + half0, 1.1);
+        let half0 = PHASE_ROWS.iter().fold(0.0f64, |a, r| a.max(r.abs())) * m.bit_space_mm() + 1.0;
+        // The phase's rows over bit space 0, and the refinement's over the others, across the
+        // whole rod (the learnt centre and radius move the samples by a fraction of a radius).
+        for k in 0..m.bits() {
+            let c = m.bit_space_centre_mm(k);
+            touch(c - half0, c + half0, 1.1);
+        }
         if st.shading_due(p) {
             for &u in st.white_u.iter().chain(&st.black_u) {
                 touch(u - 1.0, u + 1.0, 1.1);

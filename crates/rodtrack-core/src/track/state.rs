@@ -50,6 +50,13 @@ pub(super) struct EnhancedState {
     /// where the sample sits across the rod in knot radii: `sin delta`, or through the rod's
     /// own perspective with the lens' radius).
     pub(super) phase_delta: Vec<(f64, f64, f64)>,
+    /// Half the phase samples' span of surface angles, rad, and their spacing's inverse, per
+    /// rad.
+    pub(super) phase_half_rad: f64,
+    pub(super) phase_per_rad: f64,
+    /// The rod's own perspective `rho = r / D` with the lens' radius (calibration's
+    /// `lens_perspective`), and `sqrt(1 - rho^2)`.
+    pub(super) lens_rho: Option<(f64, f64)>,
     /// The radius corrections `eps` scored (one, 0, with the lens' radius).
     pub(super) eps_values: Vec<f64>,
     /// Per radius correction `eps`: (weight, cos, sin) of `cycles * asin(sin(delta) / (1 + eps))`.
@@ -330,6 +337,9 @@ impl EnhancedState {
             centre: CentreFit::default(),
             centre_slope: calib.enhanced.learn_centre_slope,
             lens_radius: lens.is_some(),
+            lens_rho: lens.map(|rho| (rho, (1.0 - rho * rho).sqrt())),
+            phase_half_rad: half,
+            phase_per_rad: count as f64 / (2.0 * half),
             angle_bias: calib.enhanced.angle_bias_rad.clone(),
             phase_sign: calib.enhanced.phase_sign as f64,
             frames_seen: 0,

@@ -58,6 +58,9 @@ pub(super) const SHADING_REUSE_FRAMES: u32 = 8;
 
 /// Phase samples per stripe period.
 pub(super) const PHASE_SAMPLES_PER_PERIOD: usize = 8;
+/// Rows along the rod over a bit space that the phase (and the refinement by the other bit
+/// spaces' edges) reads, in bit spaces from its centre.
+pub(super) const PHASE_ROWS: [f64; 3] = [-0.25, 0.0, 0.25];
 /// Frames over which the radius correction `eps` is scored every frame; then every
 /// [`EPS_RESCORE_EVERY`]th frame.
 pub(super) const EPS_LEARN_FRAMES: u64 = 64;
@@ -79,6 +82,18 @@ pub(super) const EPS_FORGET: f64 = 0.995;
 /// raw rows) the angle std per camera, worst / median: power 0 2.64 / 1.78 mrad, 1 1.98 /
 /// 1.43, 2 1.79 / 1.34.
 pub(super) const CONTRAST_WEIGHT_POWER: i32 = 2;
+
+// ---------------------------------------------------------------- refinement (step 5b)
+
+/// The profile across each edge of bit spaces 1 and up: its half length in Gray steps and its
+/// samples (three eighths of a step either side, a quarter step apart: an edge further than
+/// [`REFINE_MAX_STEPS`] from where it is expected is not used, so the crossing of one that is
+/// lies between two of these samples).
+pub(super) const REFINE_PROFILE: (f64, usize) = (0.375, 4);
+/// An edge found further than this from where the decoded angle puts it (Gray steps) is not
+/// the print's edge as the model sees it (glare, a shadow, a finger over it) and is left out:
+/// two and a half times the angle's own error (a tenth of a step).
+pub(super) const REFINE_MAX_STEPS: f64 = 0.25;
 
 // ---------------------------------------------------------------- judge (step 6)
 

@@ -176,9 +176,9 @@ impl CameraRenderer {
         let mut marker_px = 0;
         for i in 0..self.strips.len() {
             let (a, b) = self.marker_range(i, geoms, len);
-            match mode {
-                RenderMode::Fast => self.shade_marker_fast(i, a, b, &geoms[0], shader),
-                RenderMode::Quality => {
+            match (mode, self.point_rays) {
+                (RenderMode::Fast, None) => self.shade_marker_fast(i, a, b, &geoms[0], shader),
+                (_, rays) => {
                     let cands = [Obj::Rod(i as u16)];
                     for j in a..b {
                         let p = self.strips[i].px[j].idx as usize;
@@ -188,7 +188,10 @@ impl CameraRenderer {
                             geoms,
                             shader,
                             &cands,
-                            QSUB,
+                            SubSamples {
+                                per_axis: rays.unwrap_or(QSUB),
+                                points: rays.is_some(),
+                            },
                         );
                     }
                 }
@@ -265,7 +268,17 @@ impl CameraRenderer {
                     for y in r.y0..r.y1 {
                         for x in r.x0..r.x1 {
                             if self.obj_mask[y * self.w + x] {
-                                self.shade_pixel_quality(x, y, geoms, shader, &cands, 2);
+                                self.shade_pixel_quality(
+                                    x,
+                                    y,
+                                    geoms,
+                                    shader,
+                                    &cands,
+                                    SubSamples {
+                                        per_axis: 2,
+                                        points: false,
+                                    },
+                                );
                             }
                         }
                     }
@@ -355,8 +368,10 @@ impl CameraRenderer {
         self.rad = rad;
     }
 
-    /// Quality mode: `sub x sub` sub-samples (4 or 2), each at its own time, against `cands`,
-    /// over the table.
+    /// Quality mode: `n x n` sub-samples (`n` = `subs.per_axis`: 4 or 2), each at its own
+    /// time, against `cands`, over the table; each the mean over its share of the pixel's
+    /// footprint, or with `subs.points` the print at the sub-sample's ray alone (see
+    /// [`crate::Simulation::with_point_rays`]).
     #[allow(clippy::needless_range_loop)]
     fn shade_pixel_quality(
         &mut self,
@@ -365,8 +380,9 @@ impl CameraRenderer {
         geoms: &[WorldGeom],
         shader: &Shader,
         cands: &[Obj],
-        sub: usize,
+        subs: SubSamples,
     ) {
+        let (sub, points) = (subs.per_axis, subs.points);
         let p = y * self.w + x;
         let ch = self.ch;
         let mut acc = [0.0f32; 3];
@@ -381,7 +397,13 @@ impl CameraRenderer {
             };
             let g = &geoms[slot * geoms.len() / n];
             let (d, foot, light) = self.sub_ray(x, y, fx, fy);
-            let foot = foot / sub as f32;
+            // A point ray still needs a footprint for the shader's box filter: a hundredth of
+            // the pixel's is a point beside the print's finest detail (a tenth of a pixel).
+            let foot = if points {
+                foot * 0.01
+            } else {
+                foot / sub as f32
+            };
             let t_max = self.t_max(x, y, d);
             match shader.trace(g, cands, self.origin, d, foot, t_max, None) {
                 Some(hit) => {
@@ -405,4 +427,13 @@ impl CameraRenderer {
             self.rad[p * ch + c] = acc[c] / n as f32;
         }
     }
+}
+
+/// How a pixel is sub-sampled (see [`CameraRenderer::shade_pixel_quality`]).
+#[derive(Debug, Clone, Copy)]
+struct SubSamples {
+    /// Sub-samples per axis.
+    per_axis: usize,
+    /// Each sub-sample a point ray (else the mean over its share of the pixel).
+    points: bool,
 }

@@ -65,6 +65,9 @@ pub(super) const TILE: usize = 16;
 #[derive(Debug, Clone)]
 pub(crate) struct CameraRenderer {
     pub cam: SimCamera,
+    /// The markers rendered with `n x n` point rays per pixel instead of the pixel's area
+    /// (see [`crate::Simulation::with_point_rays`]); `None`: the area.
+    pub point_rays: Option<usize>,
     pub(super) w: usize,
     pub(super) h: usize,
     pub(super) ch: usize,

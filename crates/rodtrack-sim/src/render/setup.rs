@@ -72,6 +72,7 @@ impl CameraRenderer {
         let tiles_y = h.div_ceil(TILE);
         let mut r = CameraRenderer {
             cam: cam.clone(),
+            point_rays: None,
             w,
             h,
             ch,
