@@ -21,7 +21,6 @@ use super::tuning::{PHASE_ROWS, REFINE_MAX_STEPS, REFINE_PROFILE};
 use crate::angle::wrap_steps;
 use crate::calib::RodCalibration;
 use crate::frame::FrameView;
-use crate::line::LinePoint;
 use crate::marker::{gray, Marker};
 use std::f64::consts::TAU;
 
@@ -66,17 +65,18 @@ impl EnhancedState {
         gray_read: &GrayRead,
         check: CodeCheck,
     ) -> CodeCheck {
-        let steps = m.steps();
-        let steps_f = steps as f64;
+        let steps_f = m.steps() as f64;
         let theta = check.theta;
         let to_steps = calib.enhanced.phase_sign as f64 * steps_f / TAU;
-        let step_rad = TAU / steps_f;
         let position = inter.edges.position_mm;
         let ca = self.centre_at(m, calib.reference_position_mm, position);
         let min_span = 0.2 * (inter.loc.white - inter.loc.black);
-        // Whether bit space `k` is ink over Gray step `n` (wrapped): before edge `e` is step
-        // `e - 1`, after it step `e`.
-        let ink = |k: u32, n: i64| (gray(n.rem_euclid(i64::from(steps)) as u32) >> k) & 1 == 1;
+        // The surface angle (from the facing line) where the decoded angle puts the print's
+        // edge at coordinate `x` (steps), the instance of it nearest the facing line.
+        let angle_of = |x: f64| {
+            let near = x + steps_f * ((theta - x) / steps_f).round();
+            (near - theta) / to_steps
+        };
         // An edge's weight: its position's inverse variance (noise over the print's contrast
         // times the edge's foreshortening).
         let weight = |d: f64| {
@@ -84,101 +84,111 @@ impl EnhancedState {
             let c = (w - b).max(min_span) * d.cos();
             c * c
         };
-        // The print coordinates (steps) of the edges whose profile stays inside the shading's
-        // range, from the decoded angle.
-        let d_max = self.phase_half_rad - REFINE_PROFILE.0 * step_rad;
-        let (x_a, x_b) = (theta - to_steps * d_max, theta + to_steps * d_max);
-        let (x_lo, x_hi) = (x_a.min(x_b).ceil() as i64, x_a.max(x_b).floor() as i64);
         // Bit space 0's edges in the phase's window: what the phase is worth against them.
         let mut w0 = 0.0f64;
-        let (y_a, y_b) = (
-            theta - to_steps * self.phase_half_rad,
-            theta + to_steps * self.phase_half_rad,
-        );
-        for e in y_a.min(y_b).ceil() as i64..=y_a.max(y_b).floor() as i64 {
-            if ink(0, e - 1) != ink(0, e) {
-                w0 += weight((e as f64 - theta) / to_steps);
+        for &(x, k, _) in &self.print_edges {
+            if k == 0 {
+                let d = angle_of(x);
+                if d.abs() <= self.phase_half_rad {
+                    w0 += weight(d);
+                }
             }
         }
-        let (half_o, n_prof) = (REFINE_PROFILE.0, REFINE_PROFILE.1);
+        // The edges whose profile stays inside the shading's range.
+        let (half_o, n_prof) = (REFINE_PROFILE.0, REFINE_PROFILE.1.min(MAX_PROFILE));
+        let d_max = self.phase_half_rad - half_o * TAU / steps_f;
         let o_step = 2.0 * half_o / (n_prof - 1) as f64;
         let d_step = o_step / to_steps;
         let (sin_step, cos_step) = d_step.sin_cos();
-        let (e_px, ratio) = (ca.offset_px, ca.radius_ratio);
-        let mut prof = [0.0f64; 16];
         let inv_rows = 1.0 / PHASE_ROWS.len() as f64;
-        let n_prof = n_prof.min(prof.len());
+        let mut prof = [0.0f64; MAX_PROFILE];
         let (mut sw, mut swd) = (0.0f64, 0.0f64);
-        for k in 1..m.bits() {
-            let lps: [LinePoint; PHASE_ROWS.len()] = std::array::from_fn(|i| {
-                self.knots
-                    .at(position + m.bit_space_centre_mm(k) + PHASE_ROWS[i] * m.bit_space_mm())
-            });
-            let off = gray_read.offsets[k as usize];
-            for e in x_lo..=x_hi {
-                let x_e = e as f64;
-                let ink_before = ink(k, e - 1);
-                if ink_before == ink(k, e) {
-                    continue;
-                }
-                // The profile across the edge against the middle between the print's black
-                // and white there (the light's offset at this bit space included): negative
-                // on ink, positive on paper. The samples' surface angles step by `o_step`
-                // steps, their sines and cosines by the angle-addition rule (no trigonometry
-                // per sample); a profile whose ends are in the frame is in it.
-                let d0 = (x_e - half_o - theta) / to_steps;
-                let (mut sin_d, mut cos_d) = d0.sin_cos();
-                let mut inside = true;
-                for (i, p) in prof.iter_mut().enumerate().take(n_prof) {
-                    let a = self.across_of_surface(sin_d, cos_d);
-                    let end = i == 0 || i + 1 == n_prof;
-                    let mut acc = 0.0f32;
-                    for lp in &lps {
-                        let (px, py) = lp.offset(0.0, e_px + lp.radius_px * ratio * a);
-                        let (px, py) = (px as f32, py as f32);
-                        if end {
-                            inside &= frame.contains(px, py, 1.0);
-                        }
-                        acc += frame.luma_bilinear(px, py);
-                    }
-                    let (w, b) = self.shading_at(d0 + i as f64 * d_step);
-                    *p = acc as f64 * inv_rows - b - (0.5 + off) * (w - b).max(min_span);
-                    (sin_d, cos_d) = (
-                        sin_d * cos_step + cos_d * sin_step,
-                        cos_d * cos_step - sin_d * sin_step,
+        let mut rows_of = u32::MAX;
+        // Per row over the bit space: the line's point (the learnt offset applied) and the step
+        // across per knot radius, px.
+        let mut rows = [(0.0f32, 0.0f32, 0.0f32, 0.0f32); PHASE_ROWS.len()];
+        let mut off = 0.0f64;
+        for &(x_e, k, ink_before) in &self.print_edges {
+            if k == 0 {
+                continue;
+            }
+            let d_e = angle_of(x_e);
+            if d_e.abs() > d_max {
+                continue;
+            }
+            if rows_of != k {
+                rows_of = k;
+                off = gray_read.offsets[k as usize];
+                for (row, r) in rows.iter_mut().zip(PHASE_ROWS) {
+                    let lp = self
+                        .knots
+                        .at(position + m.bit_space_centre_mm(k) + r * m.bit_space_mm());
+                    let (x0, y0) = lp.offset(0.0, ca.offset_px);
+                    let rad = lp.radius_px * ca.radius_ratio;
+                    *row = (
+                        x0 as f32,
+                        y0 as f32,
+                        (-lp.ty * rad) as f32,
+                        (lp.tx * rad) as f32,
                     );
                 }
-                if !inside {
-                    continue;
-                }
-                // The crossing of the middle nearest the expected edge, in the print's
-                // direction (from ink to paper if ink comes first).
-                let mut best: Option<f64> = None;
-                for i in 0..n_prof - 1 {
-                    let (a, b) = (prof[i], prof[i + 1]);
-                    let crosses = if ink_before {
-                        a < 0.0 && b >= 0.0
-                    } else {
-                        a >= 0.0 && b < 0.0
-                    };
-                    if !crosses {
-                        continue;
-                    }
-                    let o = -half_o + (i as f64 + a / (a - b)) * o_step;
-                    if best.is_none_or(|bo| o.abs() < bo.abs()) {
-                        best = Some(o);
-                    }
-                }
-                let Some(o) = best else { continue };
-                // The edge sits at print coordinate `x_e`, seen where the decoded angle puts
-                // `x_e + o`: the angle is `o` steps too far.
-                if o.abs() > REFINE_MAX_STEPS {
-                    continue;
-                }
-                let w = weight((x_e + o - theta) / to_steps);
-                sw += w;
-                swd -= w * o;
             }
+            // The profile across the edge against the middle between the print's black and
+            // white there (the light's offset at this bit space included): negative on ink,
+            // positive on paper. The samples' surface angles step by `o_step` steps, their
+            // sines and cosines by the angle-addition rule (no trigonometry per sample); a
+            // profile whose ends are in the frame is in it.
+            let d0 = d_e - half_o / to_steps;
+            let (mut sin_d, mut cos_d) = d0.sin_cos();
+            let mut inside = true;
+            for (i, p) in prof.iter_mut().enumerate().take(n_prof) {
+                let a = self.across_of_surface(sin_d, cos_d) as f32;
+                let end = i == 0 || i + 1 == n_prof;
+                let mut acc = 0.0f32;
+                for &(x0, y0, sx, sy) in &rows {
+                    let (px, py) = (x0 + sx * a, y0 + sy * a);
+                    if end {
+                        inside &= frame.contains(px, py, 1.0);
+                    }
+                    acc += frame.luma_bilinear(px, py);
+                }
+                let (w, b) = self.shading_at(d0 + i as f64 * d_step);
+                *p = acc as f64 * inv_rows - b - (0.5 + off) * (w - b).max(min_span);
+                (sin_d, cos_d) = (
+                    sin_d * cos_step + cos_d * sin_step,
+                    cos_d * cos_step - sin_d * sin_step,
+                );
+            }
+            if !inside {
+                continue;
+            }
+            // The crossing of the middle nearest the expected edge, in the print's direction
+            // (from ink to paper if ink comes first).
+            let mut best: Option<f64> = None;
+            for i in 0..n_prof - 1 {
+                let (a, b) = (prof[i], prof[i + 1]);
+                let crosses = if ink_before {
+                    a < 0.0 && b >= 0.0
+                } else {
+                    a >= 0.0 && b < 0.0
+                };
+                if !crosses {
+                    continue;
+                }
+                let o = -half_o + (i as f64 + a / (a - b)) * o_step;
+                if best.is_none_or(|bo| o.abs() < bo.abs()) {
+                    best = Some(o);
+                }
+            }
+            let Some(o) = best else { continue };
+            // The edge sits at print coordinate `x_e`, seen where the decoded angle puts
+            // `x_e + o`: the angle is `o` steps too far.
+            if o.abs() > REFINE_MAX_STEPS {
+                continue;
+            }
+            let w = weight(d_e + o / to_steps);
+            sw += w;
+            swd -= w * o;
         }
         if sw <= 0.0 || !(swd / sw).is_finite() {
             return check;
@@ -187,6 +197,51 @@ impl EnhancedState {
         CodeCheck {
             theta: wrap_steps(theta + shift, steps_f),
             ..check
+        }
+    }
+}
+
+/// The most samples of a profile across an edge.
+const MAX_PROFILE: usize = 8;
+
+/// The edges of a code's print around the rod: `(print coordinate in Gray steps, bit space,
+/// ink before the edge)`, by bit space then coordinate (an edge of bit space `k` at `x` is
+/// where bit `k` of `gray(x - 1)` and of `gray(x)` differ).
+pub(super) fn print_edges(bits: u32) -> Vec<(f64, u32, bool)> {
+    let steps = 1u32 << bits;
+    let mut out = Vec::new();
+    for k in 0..bits {
+        for x in 0..steps {
+            let before = (gray((x + steps - 1) % steps) >> k) & 1 == 1;
+            let after = (gray(x) >> k) & 1 == 1;
+            if before != after {
+                out.push((x as f64, k, before));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::print_edges;
+
+    /// Marker v1: bit space 0 holds 8 black and 8 white stripes (16 edges), each next one half
+    /// as many, bit spaces 3 and 4 one black and one white half each.
+    #[test]
+    fn the_print_has_the_specs_edges() {
+        let e = print_edges(5);
+        let count = |k: u32| e.iter().filter(|x| x.1 == k).count();
+        assert_eq!((0..5).map(count).collect::<Vec<_>>(), vec![16, 8, 4, 2, 2]);
+        // Every Gray step boundary is an edge of exactly one bit space.
+        let mut xs: Vec<f64> = e.iter().map(|x| x.0).collect();
+        xs.sort_by(f64::total_cmp);
+        xs.dedup();
+        assert_eq!(xs.len(), 32);
+        // Edges alternate ink -> paper and paper -> ink within a bit space.
+        for k in 0..5 {
+            let inks: Vec<bool> = e.iter().filter(|x| x.1 == k).map(|x| x.2).collect();
+            assert!(inks.windows(2).all(|w| w[0] != w[1]), "bit space {k}");
         }
     }
 }

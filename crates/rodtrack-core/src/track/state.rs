@@ -54,6 +54,8 @@ pub(super) struct EnhancedState {
     /// rad.
     pub(super) phase_half_rad: f64,
     pub(super) phase_per_rad: f64,
+    /// The print's edges around the rod (see [`super::refine::print_edges`]).
+    pub(super) print_edges: Vec<(f64, u32, bool)>,
     /// The rod's own perspective `rho = r / D` with the lens' radius (calibration's
     /// `lens_perspective`), and `sqrt(1 - rho^2)`.
     pub(super) lens_rho: Option<(f64, f64)>,
@@ -337,6 +339,7 @@ impl EnhancedState {
             centre: CentreFit::default(),
             centre_slope: calib.enhanced.learn_centre_slope,
             lens_radius: lens.is_some(),
+            print_edges: super::refine::print_edges(marker.bits()),
             lens_rho: lens.map(|rho| (rho, (1.0 - rho * rho).sqrt())),
             phase_half_rad: half,
             phase_per_rad: count as f64 / (2.0 * half),

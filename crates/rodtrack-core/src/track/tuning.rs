@@ -86,10 +86,10 @@ pub(super) const CONTRAST_WEIGHT_POWER: i32 = 2;
 // ---------------------------------------------------------------- refinement (step 5b)
 
 /// The profile across each edge of bit spaces 1 and up: its half length in Gray steps and its
-/// samples (three eighths of a step either side, a quarter step apart: an edge further than
+/// samples (a quarter step either side and on the edge: an edge further than
 /// [`REFINE_MAX_STEPS`] from where it is expected is not used, so the crossing of one that is
 /// lies between two of these samples).
-pub(super) const REFINE_PROFILE: (f64, usize) = (0.375, 4);
+pub(super) const REFINE_PROFILE: (f64, usize) = (0.25, 3);
 /// An edge found further than this from where the decoded angle puts it (Gray steps) is not
 /// the print's edge as the model sees it (glare, a shadow, a finger over it) and is left out:
 /// two and a half times the angle's own error (a tenth of a step).
