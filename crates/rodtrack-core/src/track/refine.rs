@@ -13,7 +13,7 @@
 //! black and white, as the shading measured them), and the angle moves by the weighted mean
 //! of how far they sit from where the decoded angle puts them, weighed against bit space 0's
 //! own edges. On the independent validation table the angle's scatter from pose to pose goes
-//! down by a fifth (see `docs/accuracy.md`).
+//! down by a quarter (see `docs/accuracy.md`).
 
 use super::agree::CodeCheck;
 use super::state::{EnhancedState, GrayRead, Intermediate};
