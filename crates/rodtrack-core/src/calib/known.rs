@@ -17,7 +17,7 @@ use crate::angle::{wrap_2pi, wrap_pi};
 use crate::frame::FrameView;
 use crate::line::Knots;
 use crate::marker::Marker;
-use crate::track::{Mode, RodTracker};
+use crate::track::{Mode, RodResult, RodTracker};
 use crate::{CoreError, Status};
 use std::f64::consts::TAU;
 
@@ -77,24 +77,26 @@ pub(super) fn read_back_known_poses(
     if !shifts.is_empty() {
         shifts.push([s_ref + c0, 0.0]);
         let shifts = merge_points(shifts);
+        let before = cal.knots.clone();
         shift_across(&mut cal.knots, &shifts, 0.0);
-        let mut t = RodTracker::new(
-            cal,
-            reference.frame.width(),
-            reference.frame.height(),
-            Mode::Enhanced,
-        )?;
-        let r = t.process(reference.frame)?;
+        let r = first_frame(cal, reference.frame)?;
         if r.status == Status::Ok {
             let steps = reference.marker.steps() as f64;
             cal.enhanced.angle_offset_rad =
                 wrap_2pi(r.theta_steps * TAU / steps - reference.angle_rad);
+        } else {
+            // The angle's offset cannot follow the moved line: keep the line as it was.
+            cal.knots = before;
+            cal.residuals.warnings.push(format!(
+                "the reference frame reads as {} with the line moved by the known poses' \
+                 angles: the line is left where the silhouettes put it",
+                r.status
+            ));
         }
     }
     let mut bias: Vec<[f64; 2]> = Vec::new();
     for (kp, kframe) in known {
-        let mut t = RodTracker::new(cal, kframe.width(), kframe.height(), Mode::Enhanced)?;
-        let r = t.process(kframe)?;
+        let r = first_frame(cal, kframe)?;
         if r.status == Status::Ok {
             cal.residuals
                 .known_pose_errors_mm
@@ -127,9 +129,14 @@ pub(super) fn read_back_known_poses(
 
 /// The angle `cal` reads in `frame` from a fresh tracker, when it reads it `ok`.
 fn read(cal: &RodCalibration, frame: &FrameView) -> Result<Option<f64>, CoreError> {
-    let mut t = RodTracker::new(cal, frame.width(), frame.height(), Mode::Enhanced)?;
-    let r = t.process(frame)?;
+    let r = first_frame(cal, frame)?;
     Ok((r.status == Status::Ok).then_some(r.angle_rad))
+}
+
+/// What a tracker fresh from `cal` reads in `frame` (its first frame: nothing learnt).
+fn first_frame(cal: &RodCalibration, frame: &FrameView) -> Result<RodResult, CoreError> {
+    let mut t = RodTracker::new(cal, frame.width(), frame.height(), Mode::Enhanced)?;
+    t.process(frame)
 }
 
 /// Moves every knot across the line (towards the left of its direction, as
