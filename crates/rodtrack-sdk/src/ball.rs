@@ -9,11 +9,13 @@ use rodtrack_core::ball::{BallFuser, BallRow, BallStatus, BallTracker, CameraBal
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_core::{Measurement, Status};
 use rodtrack_io::{BallSink, EventSink};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
 
 /// The most ball rows held back for a camera that has not reported their frame yet (a second
-/// of two cameras at 200 fps). A row that comes later than that is written when it comes,
-/// out of frame order, never dropped.
+/// of two cameras at 200 fps). Live, a row that comes later than that is written when it
+/// comes, out of frame order, never dropped; from recordings, the cameras ahead wait instead
+/// ([`BallShared::push`]), so the rows and events do not depend on the threads' timing.
 const MAX_PENDING_ROWS: usize = 400;
 
 /// The most rod angles held for the events until their frame's ball row (as many frames as
@@ -61,9 +63,19 @@ struct EventStage {
     /// given to the detector in frame order with the ball rows (a camera ahead of the others
     /// would otherwise push the kick's swing out of the detector's window before the shot
     /// is decided).
-    pending_rods: Vec<(u64, u32, rodtrack_core::Timestamp, f64)>,
+    pending_rods: Vec<PendingRod>,
     counts: EventCounts,
     error: Option<String>,
+}
+
+/// A rod's trusted angle waiting for its frame's ball row.
+#[derive(Debug, Clone, Copy)]
+struct PendingRod {
+    frame: u64,
+    camera: u32,
+    rod: u32,
+    t: rodtrack_core::Timestamp,
+    angle_rad: f64,
 }
 
 impl EventStage {
@@ -72,12 +84,18 @@ impl EventStage {
             return;
         }
         self.last_frame = Some(row.frame);
-        for &(frame, rod, t, angle) in &self.pending_rods {
-            if frame <= row.frame {
-                self.det.push_rod_angle(rod, t, angle);
-            }
+        // In frame order, cameras in index order: the detector keeps the first angle of a
+        // rod at a time, whichever camera's thread came first.
+        self.pending_rods
+            .sort_unstable_by_key(|r| (r.frame, r.camera, r.rod));
+        for r in self
+            .pending_rods
+            .iter()
+            .take_while(|r| r.frame <= row.frame)
+        {
+            self.det.push_rod_angle(r.rod, r.t, r.angle_rad);
         }
-        self.pending_rods.retain(|r| r.0 > row.frame);
+        self.pending_rods.retain(|r| r.frame > row.frame);
         self.det.push(row, &mut self.buf);
     }
 
@@ -88,8 +106,13 @@ impl EventStage {
                 // Its frame's ball row is gone: now.
                 self.det.push_rod_angle(m.rod, m.timestamp_ns, m.angle_rad);
             } else if self.pending_rods.len() < MAX_PENDING_RODS {
-                self.pending_rods
-                    .push((m.frame, m.rod, m.timestamp_ns, m.angle_rad));
+                self.pending_rods.push(PendingRod {
+                    frame: m.frame,
+                    camera: camera_index(m.camera),
+                    rod: m.rod,
+                    t: m.timestamp_ns,
+                    angle_rad: m.angle_rad,
+                });
             }
         }
     }
@@ -143,7 +166,7 @@ impl BallSets {
     /// The rows of the cameras `cameras` (their indices) into `sink`, a camera silent while
     /// another one is `max_lag_frames` frames ahead not waited for.
     pub fn new(cameras: &[u32], max_lag_frames: u64, sink: Box<dyn BallSink>) -> BallSets {
-        let mut w = BallWriter::new(sink, cameras.iter().map(|&c| (c, None)).collect());
+        let mut w = BallWriter::new(sink, cameras);
         w.max_lag_frames = Some(max_lag_frames);
         BallSets(w)
     }
@@ -168,7 +191,26 @@ impl BallSets {
 /// The session's ball: the trackers (taken by the cameras' threads) and the ordered writer.
 pub(crate) struct BallStage {
     trackers: Vec<(u32, BallTracker)>,
-    writer: Arc<Mutex<BallWriter>>,
+    shared: Arc<BallShared>,
+}
+
+/// The writer the cameras' threads share, and the signal a thread ahead waits on.
+pub(crate) struct BallShared {
+    writer: Mutex<BallWriter>,
+    moved: Condvar,
+}
+
+/// A camera's ball: its tracker and its feed of the shared writer.
+pub(crate) struct BallCamera {
+    pub(crate) tracker: BallTracker,
+    pub(crate) feed: BallFeed,
+}
+
+/// A camera's rows into the shared writer. Dropped (the camera's thread ended), it tells the
+/// writer not to wait for the camera.
+pub(crate) struct BallFeed {
+    camera: u32,
+    shared: Arc<BallShared>,
 }
 
 /// Rows of all cameras put in frame order before they reach the sink: a frame's rows are
@@ -192,7 +234,11 @@ pub(crate) struct BallWriter {
     max_lag_frames: Option<u64>,
     /// One frame's camera rows, kept for its capacity.
     group: Vec<CameraBall>,
-    last: Vec<(u32, Option<u64>)>,
+    /// Per camera: its index, the newest frame it reported, whether it ended.
+    last: Vec<(u32, Option<u64>, bool)>,
+    /// Recordings: a camera ahead of another by [`MAX_PENDING_ROWS`] rows waits at most
+    /// this long for it before its rows are written without the other's.
+    hold: Option<Duration>,
     error: Option<String>,
     counts: BallCounts,
     /// The events of each frame set's row (the fused row, or the one camera's).
@@ -218,18 +264,39 @@ impl BallStage {
                     .into(),
             ));
         }
-        let last: Vec<(u32, Option<u64>)> = trackers.iter().map(|(i, _)| (*i, None)).collect();
-        let writer = BallWriter::new(sink, last);
+        let cameras: Vec<u32> = trackers.iter().map(|(i, _)| *i).collect();
+        let writer = BallWriter::new(sink, &cameras);
         Ok(BallStage {
             trackers,
-            writer: Arc::new(Mutex::new(writer)),
+            shared: Arc::new(BallShared {
+                writer: Mutex::new(writer),
+                moved: Condvar::new(),
+            }),
         })
     }
 
-    /// Camera `index`'s tracker and the shared writer.
-    pub(crate) fn take(&mut self, index: u32) -> Option<(BallTracker, Arc<Mutex<BallWriter>>)> {
+    /// Camera `index`'s tracker with the shared writer.
+    pub(crate) fn take(&mut self, index: u32) -> Option<BallCamera> {
         let at = self.trackers.iter().position(|(i, _)| *i == index)?;
-        Some((self.trackers.swap_remove(at).1, self.writer.clone()))
+        Some(BallCamera {
+            tracker: self.trackers.swap_remove(at).1,
+            feed: BallFeed {
+                camera: index,
+                shared: self.shared.clone(),
+            },
+        })
+    }
+
+    /// Before the run: the cameras a thread ahead waits for at most `hold` (recordings;
+    /// `None` live: the oldest rows are written without a camera [`MAX_PENDING_ROWS`] behind).
+    /// The calibration's cameras the session does not run are not waited for.
+    pub(crate) fn start(&mut self, hold: Option<Duration>) {
+        if let Ok(mut w) = self.shared.writer.lock() {
+            w.hold = hold;
+        }
+        for (camera, _) in self.trackers.drain(..) {
+            self.shared.ended(camera);
+        }
     }
 
     /// Detects the events of the frame sets' ball rows (the `fused` row with several cameras,
@@ -243,10 +310,7 @@ impl BallStage {
         let geom = TableGeometry::from_calibration(cal, &cfg)
             .map_err(|e| SdkError::core("the events", e))?;
         let det = EventDetector::new(geom, cfg).map_err(|e| SdkError::core("the events", e))?;
-        let mut w = self
-            .writer
-            .lock()
-            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
+        let mut w = self.shared.lock()?;
         w.events = Some(EventStage {
             det,
             sink,
@@ -261,27 +325,77 @@ impl BallStage {
 
     /// The event counts, when events were asked for (after [`BallStage::finish`]).
     pub(crate) fn finish_events(&self) -> Result<Option<EventCounts>, SdkError> {
-        let mut w = self
-            .writer
-            .lock()
-            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
+        let mut w = self.shared.lock()?;
         w.events.as_mut().map(|e| e.finish()).transpose()
     }
 
     /// Writes what is pending and flushes: the counts, or the first error.
     pub(crate) fn finish(&self) -> Result<BallCounts, SdkError> {
-        let mut w = self
-            .writer
-            .lock()
-            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))?;
+        let mut w = self.shared.lock()?;
         w.finish()
     }
 }
 
+impl BallShared {
+    fn lock(&self) -> Result<MutexGuard<'_, BallWriter>, SdkError> {
+        self.writer
+            .lock()
+            .map_err(|_| SdkError::Runtime("the ball writer's lock is poisoned".into()))
+    }
+
+    /// Camera `camera` has ended: its frames are no longer waited for.
+    fn ended(&self, camera: u32) {
+        if let Ok(mut w) = self.writer.lock() {
+            w.camera_ended(camera);
+        }
+        self.moved.notify_all();
+    }
+}
+
+impl BallFeed {
+    /// The camera's ball row of a frame (with its position's standard deviation), after the
+    /// rods' rows of the same frame when they were measured (`rods`: the events' shot rod).
+    /// From recordings, a camera [`MAX_PENDING_ROWS`] rows ahead of another waits for it here
+    /// (at most the writer's hold time).
+    pub(crate) fn push(&self, row: BallRow, sigma_mm: f64, rods: Option<&[Measurement]>) {
+        let Ok(mut w) = self.shared.writer.lock() else {
+            return;
+        };
+        if let Some(rows) = rods {
+            w.push_rods(rows);
+        }
+        w.push(self.camera, row, sigma_mm);
+        self.shared.moved.notify_all();
+        let Some(hold) = w.hold else {
+            return;
+        };
+        let since = Instant::now();
+        while w.ahead(self.camera) {
+            let left = hold.saturating_sub(since.elapsed());
+            if left.is_zero() {
+                // The camera behind is stuck: its frames are no longer waited for.
+                w.evict();
+                return;
+            }
+            w = match self.shared.moved.wait_timeout(w, left) {
+                Ok((w, _)) => w,
+                Err(_) => return,
+            };
+        }
+    }
+}
+
+impl Drop for BallFeed {
+    fn drop(&mut self) {
+        self.shared.ended(self.camera);
+    }
+}
+
 impl BallWriter {
-    /// The writer of the cameras in `last` (their indices, none reported yet).
-    fn new(sink: Box<dyn BallSink>, last: Vec<(u32, Option<u64>)>) -> BallWriter {
-        let cameras = last.len();
+    /// The writer of the cameras `cameras` (their indices, none reported yet).
+    fn new(sink: Box<dyn BallSink>, cameras: &[u32]) -> BallWriter {
+        let last = cameras.iter().map(|&c| (c, None, false)).collect();
+        let cameras = cameras.len();
         BallWriter {
             sink,
             pending: Vec::with_capacity(MAX_PENDING_ROWS + 1),
@@ -292,6 +406,7 @@ impl BallWriter {
             max_lag_frames: None,
             group: Vec::with_capacity(cameras),
             last,
+            hold: None,
             error: None,
             counts: BallCounts::default(),
             events: None,
@@ -311,27 +426,70 @@ impl BallWriter {
             .position(|r| (r.row.frame, cam_key(&r.row)) > (row.frame, cam_key(&row)))
             .unwrap_or(self.pending.len());
         self.pending.insert(at, CameraBall { row, sigma_mm });
-        for (c, l) in &mut self.last {
+        for (c, l, _) in &mut self.last {
             if *c == camera {
                 *l = Some(row.frame);
             }
         }
-        let done = self.last.iter().map(|(_, l)| *l).min().flatten();
-        if let Some(f) = done {
-            self.emit(f);
-        }
-        // A camera that stopped reporting (gone, or its source ended) holds the others' rows
-        // back no longer than [`MAX_PENDING_ROWS`]: the oldest frame is written without it.
-        while self.pending.len() > MAX_PENDING_ROWS {
-            let oldest = self.pending[0].row.frame;
-            self.emit(oldest);
+        self.emit_done();
+        // Live, a camera that stopped reporting (gone, or stuck) holds the others' rows back
+        // no longer than [`MAX_PENDING_ROWS`]: the oldest frame is written without it. From
+        // recordings, the camera ahead waits instead ([`BallFeed::push`]).
+        if self.hold.is_none() {
+            self.evict();
         }
         if let Some(lag) = self.max_lag_frames {
-            let newest = self.last.iter().filter_map(|(_, l)| *l).max();
+            let newest = self.last.iter().filter_map(|(_, l, _)| *l).max();
             if let Some(n) = newest.filter(|&n| n > lag) {
                 self.emit(n - lag - 1);
             }
         }
+    }
+
+    /// Writes every frame each camera that has not ended has reported (all, when every
+    /// camera ended).
+    fn emit_done(&mut self) {
+        let running = self.last.iter().filter(|(_, _, ended)| !ended);
+        match running.map(|(_, l, _)| *l).min() {
+            None => self.emit(u64::MAX),
+            Some(Some(f)) => self.emit(f),
+            Some(None) => {}
+        }
+    }
+
+    /// Writes the oldest frames, without the cameras that have not reported them, until at
+    /// most [`MAX_PENDING_ROWS`] rows are held.
+    fn evict(&mut self) {
+        while self.pending.len() > MAX_PENDING_ROWS {
+            let oldest = self.pending[0].row.frame;
+            self.emit(oldest);
+        }
+    }
+
+    /// Camera `camera` has ended: what the others reported is written.
+    fn camera_ended(&mut self, camera: u32) {
+        for (c, _, ended) in &mut self.last {
+            if *c == camera {
+                *ended = true;
+            }
+        }
+        self.emit_done();
+    }
+
+    /// Whether `camera` should wait: [`MAX_PENDING_ROWS`] rows held and a camera still
+    /// running has not reached this camera's newest frame.
+    fn ahead(&self, camera: u32) -> bool {
+        if self.pending.len() < MAX_PENDING_ROWS {
+            return false;
+        }
+        let mine = self
+            .last
+            .iter()
+            .find(|(c, _, _)| *c == camera)
+            .and_then(|(_, l, _)| *l);
+        self.last
+            .iter()
+            .any(|&(c, l, ended)| c != camera && !ended && l < mine)
     }
 
     /// Writes what is pending and flushes: the counts, or the first error.
@@ -422,7 +580,12 @@ impl BallWriter {
 }
 
 fn cam_key(r: &BallRow) -> u32 {
-    match r.camera {
+    camera_index(r.camera)
+}
+
+/// A camera's index, the fused rows after every camera.
+fn camera_index(c: rodtrack_core::CameraId) -> u32 {
+    match c {
         rodtrack_core::CameraId::Camera(i) => i,
         rodtrack_core::CameraId::Fused => u32::MAX,
     }
@@ -443,7 +606,7 @@ mod tests {
     }
 
     fn writer(sink: &BallVecSink) -> BallWriter {
-        BallWriter::new(Box::new(sink.clone()), vec![(0, None), (1, None)])
+        BallWriter::new(Box::new(sink.clone()), &[0, 1])
     }
 
     /// Both cameras reporting: each frame is written once both have it, in frame and camera
@@ -520,5 +683,85 @@ mod tests {
         let counts = w.finish().unwrap();
         assert_eq!(sink.rows().len(), 30 + 2 * 10);
         assert_eq!(counts.lost, 50);
+    }
+
+    /// The shared writer of a session with cameras 0 and 1, holding for recordings.
+    fn shared(sink: &BallVecSink, hold: Duration) -> (BallFeed, BallFeed, Arc<BallShared>) {
+        let mut w = writer(sink);
+        w.hold = Some(hold);
+        let shared = Arc::new(BallShared {
+            writer: Mutex::new(w),
+            moved: Condvar::new(),
+        });
+        let cam = |camera| BallFeed {
+            camera,
+            shared: shared.clone(),
+        };
+        (cam(0), cam(1), shared)
+    }
+
+    /// From recordings, a camera far ahead of the other waits for it (no frame is written
+    /// without the other's row, none late), however the threads are scheduled; and a camera
+    /// whose thread ended is no longer waited for.
+    #[test]
+    fn a_camera_ahead_waits_for_the_other_and_an_ended_one_is_not_waited_for() {
+        let sink = BallVecSink::default();
+        let (fast, slow, shared) = shared(&sink, Duration::from_secs(60));
+        let n = 3 * MAX_PENDING_ROWS as u64;
+        let ahead = std::thread::spawn(move || {
+            for f in 0..n {
+                fast.push(row(0, f), f64::INFINITY, None);
+            }
+            // Camera 0 ends here (dropped), after its last row.
+        });
+        // Camera 1 starts late and goes slowly: camera 0 must wait for it.
+        std::thread::sleep(Duration::from_millis(50));
+        for f in 0..n / 2 {
+            slow.push(row(1, f), f64::INFINITY, None);
+            if f % 100 == 0 {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            assert!(shared.writer.lock().unwrap().pending.len() <= MAX_PENDING_ROWS + 1);
+        }
+        // Camera 1 ends half way: camera 0's last frames are written without it.
+        drop(slow);
+        ahead.join().unwrap();
+        let counts = shared.lock().unwrap().finish().unwrap();
+        let rows = sink.rows();
+        // Per frame of the first half: both cameras and the fused row; then camera 0 and the
+        // fused row. In frame order: nothing came late.
+        assert_eq!(rows.len() as u64, 3 * (n / 2) + 2 * (n - n / 2));
+        assert!(rows.windows(2).all(|p| p[0].frame <= p[1].frame));
+        assert_eq!(counts.lost, rows.len() as u64);
+    }
+
+    /// Without a hold time (live), the camera ahead does not wait: the rows of a camera far
+    /// behind are written late, on their own.
+    #[test]
+    fn live_a_camera_ahead_does_not_wait() {
+        let sink = BallVecSink::default();
+        let (fast, slow, shared) = shared(&sink, Duration::ZERO);
+        shared.writer.lock().unwrap().hold = None;
+        let n = 3 * MAX_PENDING_ROWS as u64;
+        for f in 0..n {
+            fast.push(row(0, f), f64::INFINITY, None);
+        }
+        slow.push(row(1, 0), f64::INFINITY, None);
+        drop((fast, slow));
+        let rows = sink.rows();
+        assert_eq!(
+            rows.len() as u64,
+            2 * n + 1,
+            "camera 1's frame 0 on its own"
+        );
+        let at = |frame, camera| {
+            rows.iter()
+                .position(|r| (r.frame, r.camera) == (frame, camera))
+        };
+        let late = at(0, CameraId::Camera(1)).unwrap();
+        assert!(
+            late > at(1, CameraId::Fused).unwrap(),
+            "written after newer frames"
+        );
     }
 }

@@ -10,8 +10,11 @@ use rodtrack_core::ball::events::{
 };
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_io::{BallVecSink, EventVecSink, VecSink};
-use rodtrack_sdk::{EventCounts, Session, SessionOptions};
+use rodtrack_sdk::{EventCounts, Session, SessionCamera, SessionOptions};
 use rodtrack_sim::{build_simulation, Simulation};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 mod common;
 use common::{calibrate, session_cameras};
@@ -219,4 +222,118 @@ fn stretch_kicks_are_credited_to_the_rod_that_swung() {
     }
     assert_eq!((shots.missed, shots.false_events), (0, 0), "{shots:?}");
     assert_eq!(rod_right, shots.found, "every shot to the rod that kicked");
+}
+
+/// A camera's source that counts the frames it read (`read`), and, with `wait`, stops
+/// before its frame `wait.0` until the other camera's source read `wait.2` frames (a disk or a
+/// scheduler that keeps its thread waiting) or stopped reading, then goes on.
+struct Stall {
+    inner: Box<dyn rodtrack_io::FrameSource>,
+    read: Arc<AtomicU64>,
+    wait: Option<(u64, Arc<AtomicU64>, u64)>,
+    /// The other camera's frames read when this one went on.
+    released_at: Arc<AtomicU64>,
+}
+
+impl rodtrack_io::FrameSource for Stall {
+    fn info(&self) -> rodtrack_io::source::SourceInfo {
+        self.inner.info()
+    }
+    fn next_frame(
+        &mut self,
+        buf: &mut rodtrack_io::FrameBuffer,
+    ) -> Result<Option<()>, rodtrack_io::SourceError> {
+        if let Some((at, other, until)) = &self.wait {
+            if self.read.load(Ordering::SeqCst) == *at {
+                // Until the other camera read `until` frames, or stopped reading for 0.3 s
+                // (it waits for this one).
+                let (mut seen, mut since) = (other.load(Ordering::SeqCst), Instant::now());
+                while seen < *until && since.elapsed() < Duration::from_millis(300) {
+                    std::thread::sleep(Duration::from_millis(1));
+                    let now = other.load(Ordering::SeqCst);
+                    if now != seen {
+                        (seen, since) = (now, Instant::now());
+                    }
+                }
+                self.released_at.store(seen, Ordering::SeqCst);
+            }
+        }
+        let r = self.inner.next_frame(buf);
+        self.read.fetch_add(1, Ordering::SeqCst);
+        r
+    }
+}
+
+/// The ball rows (frame, camera, status, position, velocity) and events of a session over
+/// `sim`; with `stall`, camera 1's source stops at its frame 200 until camera 0's read all
+/// but 50 of its frames.
+fn track_stalled(
+    sim: &Simulation,
+    cal: &CalibrationFile,
+    stall: bool,
+) -> (Vec<String>, Vec<String>, u64) {
+    let frames = sim.frame_count() as u64;
+    let read0 = Arc::new(AtomicU64::new(0));
+    let released_at = Arc::new(AtomicU64::new(0));
+    let cameras: Vec<SessionCamera> = session_cameras(sim, cal)
+        .into_iter()
+        .enumerate()
+        .map(|(i, c)| SessionCamera {
+            source: Box::new(Stall {
+                inner: c.source,
+                read: if i == 0 {
+                    read0.clone()
+                } else {
+                    Arc::default()
+                },
+                wait: (i == 1 && stall).then(|| (200, read0.clone(), frames - 50)),
+                released_at: released_at.clone(),
+            }),
+            ..c
+        })
+        .collect();
+    let rows = BallVecSink::default();
+    let events = EventVecSink::default();
+    let session = Session::from_cameras(cameras, SessionOptions::default())
+        .with_ball(cal, Box::new(rows.clone()))
+        .unwrap()
+        .with_events(cal, EventConfig::default(), Box::new(events.clone()))
+        .unwrap();
+    session.run(VecSink::default()).unwrap();
+    let rows = rows
+        .rows()
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {} {:?} {} {} {} {}",
+                r.frame, r.camera, r.status, r.x_mm, r.y_mm, r.vx_mm_s, r.vy_mm_s
+            )
+        })
+        .collect();
+    let events = events.events().iter().map(|e| e.json_line()).collect();
+    (rows, events, released_at.load(Ordering::SeqCst))
+}
+
+/// A recording gives the same ball rows and events however the cameras' threads are
+/// scheduled: camera 1 stalled at frame 200 until camera 0 is 1000 frames ahead writes what
+/// a run without the stall writes, every frame's rows in order, none late.
+#[test]
+fn a_stalled_camera_changes_no_ball_row_and_no_event() {
+    let seed = 7;
+    let mut sim = build_simulation("goals", Some(1250), seed, false, "default").unwrap();
+    let cal = calibrate(&mut sim, seed);
+    let (rows, events, _) = track_stalled(&sim, &cal, false);
+    let (stalled_rows, stalled_events, lead) = track_stalled(&sim, &cal, true);
+    // The case: camera 0 ran more than the 400 rows the writer holds ahead of camera 1.
+    eprintln!("camera 0 read {lead} frames while camera 1 stood at frame 200");
+    assert!(lead >= 600, "camera 0 ahead: {lead}");
+    assert_eq!(
+        rows.len(),
+        3 * 1250,
+        "both cameras and the fused row per frame"
+    );
+    let first_difference = rows.iter().zip(&stalled_rows).position(|(a, b)| a != b);
+    assert_eq!(first_difference, None, "the ball rows");
+    assert_eq!(rows.len(), stalled_rows.len());
+    assert_eq!(events, stalled_events, "the events");
 }

@@ -125,27 +125,24 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                 let ts = meta.timestamp_ns;
                 let start = Instant::now();
                 let view = frame.as_ref().ok();
-                if let Some((tracker, writer)) = ball_cam.as_mut() {
-                    // Every frame gets a ball row; one that could not be read, a prediction.
+                // Every frame gets a ball row; one that could not be read, a prediction.
+                let ball_row = ball_cam.as_mut().map(|b| {
                     let row = match view {
-                        Some(v) => tracker.process(v, meta.frame_id, ts),
-                        None => tracker.missed(meta.frame_id, ts),
+                        Some(v) => b.tracker.process(v, meta.frame_id, ts),
+                        None => b.tracker.missed(meta.frame_id, ts),
                     };
-                    let sigma_mm = tracker.row_sigma_mm();
-                    if let Ok(mut w) = writer.lock() {
-                        w.push(cam_index, row, sigma_mm);
-                    }
-                }
+                    (row, b.tracker.row_sigma_mm())
+                });
                 let result = match frame {
                     Ok(view) => pipe
                         .process(&view, meta.frame_id, ts, rows)
                         .map_err(|e| e.to_string()),
                     Err(e) => Err(e.to_string()),
                 };
-                if let (Ok(()), Some((_, writer))) = (&result, ball_cam.as_ref()) {
-                    if let Ok(mut w) = writer.lock() {
-                        w.push_rods(rows);
-                    }
+                if let (Some(b), Some((row, sigma_mm))) = (ball_cam.as_ref(), ball_row) {
+                    // The rods' rows first: the events see a frame's rod angles with its ball.
+                    b.feed
+                        .push(row, sigma_mm, result.is_ok().then_some(&rows[..]));
                 }
                 match result {
                     Ok(()) => {
@@ -202,6 +199,11 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                     source: e,
                 })?;
         }
+    }
+    if let Some(b) = ball.as_mut() {
+        // From recordings the ball rows and events do not depend on the threads' timing: a
+        // camera far ahead waits for the others (as long as a frame set would).
+        b.start((!live).then_some(config.group_timeout));
     }
     let warnings = Arc::new(AtomicU64::new(0));
     if fused {
