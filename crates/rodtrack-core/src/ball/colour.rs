@@ -124,16 +124,19 @@ impl QuadLayout {
                 d.get((2 * qy + 1) * s..(2 * qy + 1) * s + end),
             );
             if let (Some(top), Some(bottom)) = rows {
-                for k in 0..n {
-                    let x = 2 * (qx0 + k * step);
-                    let v = [
-                        top[x] as f32,
-                        top[x + 1] as f32,
-                        bottom[x] as f32,
-                        bottom[x + 1] as f32,
-                    ];
-                    let g = 0.5 * (v[0] + v[1] + v[2] + v[3] - v[r] - v[b]);
-                    f(k, [v[r], g, v[b]]);
+                // The four Bayer layouts with their red and blue places as constants (indexing
+                // the quad by a variable costs more than the colour's arithmetic).
+                let row = (top, bottom, qx0, step, n);
+                match (r, b) {
+                    (0, 3) => bayer_row::<0, 3>(row, f),
+                    (3, 0) => bayer_row::<3, 0>(row, f),
+                    (1, 2) => bayer_row::<1, 2>(row, f),
+                    (2, 1) => bayer_row::<2, 1>(row, f),
+                    _ => {
+                        for k in 0..n {
+                            f(k, quad_rgb(top, bottom, 2 * (qx0 + k * step), r, b));
+                        }
+                    }
                 }
                 return;
             }
@@ -141,6 +144,32 @@ impl QuadLayout {
         for k in 0..n {
             f(k, self.rgb(view, qx0 + k * step, qy));
         }
+    }
+}
+
+/// The colour of the 8-bit Bayer quad at byte `x` of the rows `top` and `bottom`, red at
+/// place `r` and blue at `b` of the quad (0, 1 on top, 2, 3 below): as [`QuadLayout::rgb`].
+#[inline(always)]
+fn quad_rgb(top: &[u8], bottom: &[u8], x: usize, r: usize, b: usize) -> [f32; 3] {
+    let v = [
+        top[x] as f32,
+        top[x + 1] as f32,
+        bottom[x] as f32,
+        bottom[x + 1] as f32,
+    ];
+    let g = 0.5 * (v[0] + v[1] + v[2] + v[3] - v[r] - v[b]);
+    [v[r], g, v[b]]
+}
+
+/// [`QuadLayout::for_row`] over 8-bit Bayer rows `(top, bottom, qx0, step, n)` with red at
+/// place `R` and blue at `B`.
+#[inline(always)]
+fn bayer_row<const R: usize, const B: usize>(
+    (top, bottom, qx0, step, n): (&[u8], &[u8], usize, usize, usize),
+    mut f: impl FnMut(usize, [f32; 3]),
+) {
+    for k in 0..n {
+        f(k, quad_rgb(top, bottom, 2 * (qx0 + k * step), R, B));
     }
 }
 
@@ -274,6 +303,39 @@ fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A row's quads read at once are each quad's own colour, bit for bit, in every layout.
+    #[test]
+    fn a_row_of_quads_is_each_quad_read_alone() {
+        let (w, h) = (24, 6);
+        // Bytes that fill every value's range (a fixed pseudo-random sequence).
+        let data: Vec<u8> = (0..w * h)
+            .map(|i: usize| (i.wrapping_mul(2_654_435_761) >> 7) as u8)
+            .collect();
+        for format in [
+            PixelFormat::BayerRggb8,
+            PixelFormat::BayerBggr8,
+            PixelFormat::BayerGrbg8,
+            PixelFormat::BayerGbrg8,
+            PixelFormat::BayerRggb16,
+        ] {
+            let layout = QuadLayout::of(format).unwrap();
+            // The same bytes: `w` pixels of 8 bits or `w / 2` of 16 per row.
+            let width = w / format.bytes_per_pixel();
+            let v = FrameView::new(&data, width, h, w, format).unwrap();
+            for (qx0, step) in [(0, 1), (1, 2), (2, 3)] {
+                let n = (v.width() / 2 - qx0).div_ceil(step);
+                for qy in 0..v.height() / 2 {
+                    let mut got = Vec::new();
+                    layout.for_row(&v, qy, qx0, step, n, |k, rgb| got.push((k, rgb)));
+                    let want: Vec<(usize, [f32; 3])> = (0..n)
+                        .map(|k| (k, layout.rgb(&v, qx0 + k * step, qy)))
+                        .collect();
+                    assert_eq!(got, want, "{format:?} row {qy} from {qx0} step {step}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn bayer_quads_read_their_channels() {

@@ -458,6 +458,29 @@ impl BallDetector {
         Some(top * (1.0 - fy) + bot * fy)
     }
 
+    /// The block of quads from `(floor x_q, floor y_q)` to the next ones, `[x0, y0, x1, y1)`
+    /// in quads, when the memo covers it, and whether its four quads are all surely the ball's
+    /// colour (each at least [`SURE_INSIDE`]: every bilinear sample in it is then at least
+    /// 0.5, and none off the colours' axis). `None` where [`BallDetector::alpha_at`] gives
+    /// `None` or the memo does not reach.
+    #[inline]
+    fn sure_block(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<([f64; 4], bool)> {
+        if x_q < 0.0 || y_q < 0.0 {
+            return None;
+        }
+        let (ix, iy) = (x_q as i64 as usize, y_q as i64 as usize);
+        if ix >= self.qw.saturating_sub(1) || iy >= self.qh.saturating_sub(1) {
+            return None;
+        }
+        let c = self.alpha.block(ix, iy)?;
+        let w = self.alpha.w;
+        let sure = [c, c + 1, c + w, c + w + 1]
+            .into_iter()
+            .all(|k| self.memo_alpha(view, k) >= SURE_INSIDE);
+        let (x0, y0) = (ix as f64, iy as f64);
+        Some(([x0, y0, x0 + 1.0, y0 + 1.0], sure))
+    }
+
     /// The memo's colour position of cell `c`, computed on first use.
     #[inline(always)]
     fn memo_alpha(&mut self, view: &FrameView, c: usize) -> f32 {
@@ -527,16 +550,37 @@ impl BallDetector {
         }
         self.rays.clear();
         self.octant.clear();
+        // Samples in a block of quads all of the ball's colour are inside whatever their
+        // place in it: no bilinear value is computed for them (the plain path computes each).
+        let blocks = !self.plain && self.alpha.w > 0;
         for i in 0..N_RAYS {
             let [c, s] = self.dirs[i].map(|v| v as f64);
             let mut t = 0.3 * rq;
+            // The previous sample's `t` and colour position (NaN: not computed, inside).
             let mut prev: Option<(f64, f32)> = None;
             let mut inside = false;
             let mut edge = None;
             // Samples of the ball's colour since the last occluder (`None`: none crossed).
             let mut since_occluder: Option<usize> = None;
+            // The block the last sample fell in, `[x0, y0, x1, y1)`, and whether it is sure.
+            let mut block: Option<([f64; 4], bool)> = None;
             while t <= 1.8 * rq + 1.0 {
                 let (x, y) = (blob.cx_q + t * c, blob.cy_q + t * s);
+                if blocks {
+                    let within = |b: &[f64; 4]| x >= b[0] && x < b[2] && y >= b[1] && y < b[3];
+                    if !block.is_some_and(|(b, _)| within(&b)) {
+                        block = self.sure_block(view, x, y);
+                    }
+                    if block.is_some_and(|(_, sure)| sure) {
+                        inside = true;
+                        if let Some(n) = since_occluder.as_mut() {
+                            *n += 1;
+                        }
+                        prev = Some((t, f32::NAN));
+                        t += dt;
+                        continue;
+                    }
+                }
                 let Some(a) = self.alpha_at(view, x, y) else {
                     break;
                 };
@@ -559,6 +603,12 @@ impl BallDetector {
                         break;
                     }
                     if let Some((tp, ap)) = prev {
+                        let ap = match ap.is_nan() {
+                            true => self
+                                .alpha_at(view, blob.cx_q + tp * c, blob.cy_q + tp * s)
+                                .unwrap_or(ap),
+                            false => ap,
+                        };
                         let te = tp + (ap as f64 - 0.5) / (ap - a).max(1e-6) as f64 * dt;
                         edge = Some(te);
                     }
@@ -716,6 +766,10 @@ fn touch_rows(view: &FrameView, region: [usize; 4], step: usize) {
     }
     std::hint::black_box(acc);
 }
+
+/// A quad's colour position at which it is surely the ball's: above 0.5 by more than a
+/// bilinear sample's rounding.
+const SURE_INSIDE: f32 = 0.5 + 1e-3;
 
 /// A mask of the first `n` of 64 bits.
 fn first_bits(n: usize) -> u64 {
