@@ -3,6 +3,7 @@
 //! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
 
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
+use super::memo::{leaves_block, AlphaMemo, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS,
     NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX, WINDOW_RADII,
@@ -59,64 +60,6 @@ pub struct BallDetector {
     /// Each quad's colour position (field 0, ball 1) around the blob being fitted, computed
     /// once per quad the rays reach (NaN until then): the rays' bilinear samples share quads.
     alpha: AlphaMemo,
-}
-
-/// The quads' colour positions around a blob, each computed at most once per fit.
-#[derive(Debug, Clone)]
-struct AlphaMemo {
-    /// Quad of cell 0.
-    x0: isize,
-    y0: isize,
-    /// Cells per row and rows in use.
-    w: usize,
-    h: usize,
-    cells: Vec<f32>,
-}
-
-impl AlphaMemo {
-    /// Starts a fit over the square of half size `half_q` quads around `(cx_q, cy_q)`; false
-    /// when it does not fit the buffer (then the rays compute every sample).
-    fn start(&mut self, cx_q: f64, cy_q: f64, half_q: f64) -> bool {
-        let n = (2.0 * half_q).ceil() as usize + 3;
-        if !(half_q.is_finite() && n * n <= self.cells.capacity()) {
-            self.w = 0;
-            self.h = 0;
-            return false;
-        }
-        self.x0 = (cx_q - half_q).floor() as isize - 1;
-        self.y0 = (cy_q - half_q).floor() as isize - 1;
-        self.w = n;
-        self.h = n;
-        self.cells.clear();
-        self.cells.resize(n * n, f32::NAN);
-        true
-    }
-
-    /// The memo's cell of quad `(x, y)` when it covers the 2 x 2 block from `(x, y)` to
-    /// `(x + 1, y + 1)` (cells `c`, `c + 1`, `c + w`, `c + w + 1`).
-    #[inline]
-    fn block(&self, x: usize, y: usize) -> Option<usize> {
-        let (dx, dy) = (x as isize - self.x0, y as isize - self.y0);
-        (dx >= 0 && dy >= 0 && (dx as usize) + 1 < self.w && (dy as usize) + 1 < self.h)
-            .then(|| dy as usize * self.w + dx as usize)
-    }
-
-    /// The quad of cell `c`.
-    #[inline]
-    fn quad(&self, c: usize) -> (usize, usize) {
-        (
-            (self.x0 + (c % self.w) as isize) as usize,
-            (self.y0 + (c / self.w) as isize) as usize,
-        )
-    }
-
-    /// The memo's cell of quad `(x, y)`, if it covers it.
-    #[inline]
-    fn cell(&self, x: usize, y: usize) -> Option<usize> {
-        let (dx, dy) = (x as isize - self.x0, y as isize - self.y0);
-        (dx >= 0 && dy >= 0 && (dx as usize) < self.w && (dy as usize) < self.h)
-            .then(|| dy as usize * self.w + dx as usize)
-    }
 }
 
 /// A blob of colour candidates.
@@ -571,13 +514,20 @@ impl BallDetector {
                     if !block.is_some_and(|(b, _)| within(&b)) {
                         block = self.sure_block(view, x, y);
                     }
-                    if block.is_some_and(|(_, sure)| sure) {
-                        inside = true;
-                        if let Some(n) = since_occluder.as_mut() {
-                            *n += 1;
+                    if let Some((b, true)) = block {
+                        // This sample and the next ones the ray surely keeps in the block.
+                        let stop =
+                            (1.8 * rq + 1.0).min(leaves_block(b, [blob.cx_q, blob.cy_q], [c, s]));
+                        let (mut last, mut next, mut n) = (t, t + dt, 1);
+                        while next <= stop {
+                            (last, next, n) = (next, next + dt, n + 1);
                         }
-                        prev = Some((t, f32::NAN));
-                        t += dt;
+                        inside = true;
+                        if let Some(k) = since_occluder.as_mut() {
+                            *k += n;
+                        }
+                        prev = Some((last, f32::NAN));
+                        t = next;
                         continue;
                     }
                 }
@@ -766,10 +716,6 @@ fn touch_rows(view: &FrameView, region: [usize; 4], step: usize) {
     }
     std::hint::black_box(acc);
 }
-
-/// A quad's colour position at which it is surely the ball's: above 0.5 by more than a
-/// bilinear sample's rounding.
-const SURE_INSIDE: f32 = 0.5 + 1e-3;
 
 /// A mask of the first `n` of 64 bits.
 fn first_bits(n: usize) -> u64 {

@@ -15,6 +15,7 @@ pub mod colour;
 pub mod detect;
 pub mod events;
 pub mod fuse;
+mod memo;
 pub mod track;
 pub mod tuning;
 
