@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 /// The most ball rows held back for a camera that has not reported their frame yet (a second
 /// of two cameras at 200 fps). Live, a row that comes later than that is written when it
 /// comes, out of frame order, never dropped; from recordings, the cameras ahead wait instead
-/// ([`BallShared::push`]), so the rows and events do not depend on the threads' timing.
+/// ([`BallFeed::push`]), so the rows and events do not depend on the threads' timing.
 const MAX_PENDING_ROWS: usize = 400;
 
 /// The most rod angles held for the events until their frame's ball row (as many frames as
@@ -345,9 +345,10 @@ impl BallShared {
 
     /// Camera `camera` has ended: its frames are no longer waited for.
     fn ended(&self, camera: u32) {
-        if let Ok(mut w) = self.writer.lock() {
-            w.camera_ended(camera);
-        }
+        self.writer
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .camera_ended(camera);
         self.moved.notify_all();
     }
 }
@@ -358,9 +359,9 @@ impl BallFeed {
     /// From recordings, a camera [`MAX_PENDING_ROWS`] rows ahead of another waits for it here
     /// (at most the writer's hold time).
     pub(crate) fn push(&self, row: BallRow, sigma_mm: f64, rods: Option<&[Measurement]>) {
-        let Ok(mut w) = self.shared.writer.lock() else {
-            return;
-        };
+        // A thread that panicked holding the lock left the writer whole (its state changes
+        // between calls only): the rows go on being written.
+        let mut w = self.shared.writer.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(rows) = rods {
             w.push_rods(rows);
         }
@@ -373,13 +374,15 @@ impl BallFeed {
         while w.ahead(self.camera) {
             let left = hold.saturating_sub(since.elapsed());
             if left.is_zero() {
-                // The camera behind is stuck: its frames are no longer waited for.
+                // A camera behind is stuck: from now on no camera waits (the live rule: the
+                // oldest frames are written without it, its rows late on their own).
+                w.hold = None;
                 w.evict();
                 return;
             }
             w = match self.shared.moved.wait_timeout(w, left) {
                 Ok((w, _)) => w,
-                Err(_) => return,
+                Err(e) => e.into_inner().0,
             };
         }
     }
@@ -763,5 +766,28 @@ mod tests {
             late > at(1, CameraId::Fused).unwrap(),
             "written after newer frames"
         );
+    }
+
+    /// A camera that never reports is waited for once, the hold time, and then no more: the
+    /// camera ahead goes on with the live rule (rows without it, none lost). Waiting the hold
+    /// time at each of its 800 rows past the limit would take 40 s.
+    #[test]
+    fn a_stuck_camera_is_waited_for_once() {
+        let sink = BallVecSink::default();
+        let (fast, silent, shared) = shared(&sink, Duration::from_millis(50));
+        let n = 3 * MAX_PENDING_ROWS as u64;
+        let started = Instant::now();
+        for f in 0..n {
+            fast.push(row(0, f), f64::INFINITY, None);
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "{:?}",
+            started.elapsed()
+        );
+        assert!(shared.writer.lock().unwrap().hold.is_none());
+        drop((fast, silent));
+        // Each frame: camera 0's row and the fused one.
+        assert_eq!(sink.rows().len() as u64, 2 * n);
     }
 }

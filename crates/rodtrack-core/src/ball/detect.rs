@@ -366,14 +366,7 @@ impl BallDetector {
 
     /// The colour's position between field (0) and ball (1), bilinear between quad centres.
     fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
-        if x_q < 0.0 || y_q < 0.0 {
-            return None;
-        }
-        // Not negative: the integer part is the floor.
-        let (ix, iy) = (x_q as i64 as usize, y_q as i64 as usize);
-        if ix >= self.qw.saturating_sub(1) || iy >= self.qh.saturating_sub(1) {
-            return None;
-        }
+        let (ix, iy) = self.base_quad(x_q, y_q)?;
         let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
         let [a00, a10, a01, a11] = match self.alpha.block(ix, iy) {
             Some(c) => {
@@ -401,6 +394,18 @@ impl BallDetector {
         Some(top * (1.0 - fy) + bot * fy)
     }
 
+    /// The quad `(floor x_q, floor y_q)` of a bilinear sample at `(x_q, y_q)`, when the sample's
+    /// four quads are in the image.
+    #[inline(always)]
+    fn base_quad(&self, x_q: f64, y_q: f64) -> Option<(usize, usize)> {
+        if x_q < 0.0 || y_q < 0.0 {
+            return None;
+        }
+        // Not negative: the integer part is the floor.
+        let (ix, iy) = (x_q as i64 as usize, y_q as i64 as usize);
+        (ix < self.qw.saturating_sub(1) && iy < self.qh.saturating_sub(1)).then_some((ix, iy))
+    }
+
     /// The block of quads from `(floor x_q, floor y_q)` to the next ones, `[x0, y0, x1, y1)`
     /// in quads, when the memo covers it, and whether its four quads are all surely the ball's
     /// colour (each at least [`SURE_INSIDE`]: every bilinear sample in it is then at least
@@ -408,13 +413,7 @@ impl BallDetector {
     /// `None` or the memo does not reach.
     #[inline]
     fn sure_block(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<([f64; 4], bool)> {
-        if x_q < 0.0 || y_q < 0.0 {
-            return None;
-        }
-        let (ix, iy) = (x_q as i64 as usize, y_q as i64 as usize);
-        if ix >= self.qw.saturating_sub(1) || iy >= self.qh.saturating_sub(1) {
-            return None;
-        }
+        let (ix, iy) = self.base_quad(x_q, y_q)?;
         let c = self.alpha.block(ix, iy)?;
         let w = self.alpha.w;
         let sure = [c, c + 1, c + w, c + w + 1]
