@@ -5,8 +5,9 @@
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::memo::{leaves_block, AlphaMemo, SURE_INSIDE};
 use super::tuning::{
-    AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS, MIN_OCTANTS,
-    NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX, WINDOW_RADII,
+    AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
+    MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
+    WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -237,24 +238,27 @@ impl BallDetector {
                         if !self.plain {
                             touch_rows(view, region, step);
                         }
-                        if let Some(d) = self.scan_and_fit(view, region, step) {
+                        if let Some(d) = self.scan_and_fit(view, region, step, Some((u, v))) {
                             return Some(d);
                         }
                     }
                 }
             }
         }
-        self.scan_and_fit(view, self.field_q, self.coarse_step)
+        self.scan_and_fit(view, self.field_q, self.coarse_step, None)
     }
 
+    /// The best blob of `region` fitted; `predicted_px`: where the tracker predicts the ball
+    /// (see [`MIN_EDGE_POINTS_NEAR_PREDICTION`]).
     fn scan_and_fit(
         &mut self,
         view: &FrameView,
         region: [usize; 4],
         step: usize,
+        predicted_px: Option<(f64, f64)>,
     ) -> Option<Detection> {
         let blob = self.best_blob(view, region, step)?;
-        self.fit(view, blob)
+        self.fit(view, blob, predicted_px)
     }
 
     /// Marks the ball-coloured quads of `region` every `step` quads and returns the blob whose
@@ -478,7 +482,12 @@ impl BallDetector {
 
     /// Edge points on rays from the blob's centre (an edge counts only with the field's colour
     /// beyond it: never the border of a figure, a hand or a rod), then the sphere's centre.
-    fn fit(&mut self, view: &FrameView, blob: Blob) -> Option<Detection> {
+    fn fit(
+        &mut self,
+        view: &FrameView,
+        blob: Blob,
+        predicted_px: Option<(f64, f64)>,
+    ) -> Option<Detection> {
         let rq = blob.rq;
         let dt = 0.25;
         let half = if self.plain { f64::NAN } else { 1.8 * rq + 2.0 };
@@ -584,7 +593,11 @@ impl BallDetector {
             self.rays.push(d);
             self.octant.push((i * 8 / N_RAYS) as u8);
         }
-        if self.rays.len() < MIN_EDGE_POINTS {
+        let fewest = match predicted_px {
+            Some(_) => MIN_EDGE_POINTS_NEAR_PREDICTION,
+            None => MIN_EDGE_POINTS,
+        };
+        if self.rays.len() < fewest {
             return None;
         }
         let (o, d0) = self.cam.ray(2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
@@ -621,13 +634,19 @@ impl BallDetector {
             }
         }
         let rms = (ss / n.max(1) as f64).sqrt();
-        if n < MIN_EDGE_POINTS
+        if n < fewest
             || (oct.count_ones() as usize) < MIN_OCTANTS
             || rms > RESIDUAL_RATIO_MAX * self.radius_mm
         {
             return None;
         }
         let (u, v) = self.cam.project([c[0], c[1], self.radius_mm])?;
+        // Fewer rays than a fit alone needs only where the prediction stands in for the rest:
+        // the centre within the ball's image radius of it.
+        let near = |(pu, pv): (f64, f64)| (u - pu).hypot(v - pv) <= 2.0 * rq;
+        if n < MIN_EDGE_POINTS && !predicted_px.is_some_and(near) {
+            return None;
+        }
         // The fitted centre must lie within the blob it came from.
         let (bu, bv) = (2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
         if ((u - bu).powi(2) + (v - bv).powi(2)).sqrt() > 2.0 * rq * 2.0 {

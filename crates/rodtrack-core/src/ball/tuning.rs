@@ -12,6 +12,11 @@ pub const AREA_RATIO_MAX: f64 = 1.5;
 pub const EXTENT_RATIO_MAX: f64 = 1.25;
 /// Edge points a fit needs.
 pub const MIN_EDGE_POINTS: usize = 8;
+/// Edge points a fit needs when the tracker predicts the ball there: the prediction's two
+/// coordinates stand in for two rays, and the fitted centre must then lie within the ball's
+/// image radius of the prediction (a ball against a wall or the goal's mouth shows the field
+/// only along part of its outline).
+pub const MIN_EDGE_POINTS_NEAR_PREDICTION: usize = MIN_EDGE_POINTS - 2;
 /// Octants of the silhouette the used edge points must cover (3 of 8: at least a quarter
 /// of the outline, which a known radius turns into a centre).
 pub const MIN_OCTANTS: usize = 3;
