@@ -1,7 +1,8 @@
 //! Per-frame processing time: every rod one camera sees in a 1440x1080 Bayer8 frame of the
 //! simulated table, in enhanced and paper mode (criterion), and the enhanced mode on a camera
 //! above the middle of the table that sees all 8 rods. The frames are a sequence of
-//! gameplay (rods moving and turning at 200 fps), cycled, so that what a tracker learns or
+//! gameplay (rods moving and turning at 200 fps), played forward and backward (see
+//! [`ping_pong`]), so that what a tracker learns or
 //! reuses from frame to frame is exercised as in a real run; the per-stage benchmarks run one
 //! stage on one frame. The `ball` group measures the ball on frames of the `ball` scenario (a
 //! ball rolling among the figures): the tracker while it follows the ball (a window around
@@ -22,6 +23,23 @@ use std::time::Duration;
 
 /// Consecutive frames of the sequence.
 const FRAMES: usize = 100;
+
+/// The frame of iteration `i` over a sequence of `len` frames played forward, then backward,
+/// then forward again (0, 1, .., len - 1, len - 2, .., 1, 0, 1, ..): every step is one frame's
+/// motion (a rod or the ball reverses as in a bounce), never the jump from the last frame back
+/// to the first, which would time a fresh search for a rod or the ball once per pass.
+fn ping_pong(i: usize, len: usize) -> usize {
+    let period = 2 * len.saturating_sub(1);
+    if period == 0 {
+        return 0;
+    }
+    let p = i % period;
+    if p < len {
+        p
+    } else {
+        period - p
+    }
+}
 
 /// Frame width, height, stride and pixel format.
 type Geometry = (usize, usize, usize, rodtrack_core::PixelFormat);
@@ -167,7 +185,7 @@ fn per_frame_cases<M: Measurement>(
             b.iter(|| {
                 rows.clear();
                 pipe.process(
-                    &views[i % FRAMES],
+                    &views[ping_pong(i, FRAMES)],
                     i as u64,
                     rodtrack_core::Timestamp(0),
                     &mut rows,
@@ -287,7 +305,7 @@ fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
     let mut frame = 2 * FRAMES as u64;
     g.bench_function("ball_tracking", |b| {
         b.iter(|| {
-            let k = ok[i % ok.len()];
+            let k = ok[ping_pong(i, ok.len())];
             i += 1;
             frame += 1;
             std::hint::black_box(tracker.process(&views[k], frame, frame_time(frame, 200.0)))
@@ -310,7 +328,7 @@ fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
     let mut i = 0u64;
     g.bench_function(format!("table_{}_rods_and_ball", cal.rods.len()), |b| {
         b.iter(|| {
-            let view = &views[i as usize % FRAMES];
+            let view = &views[ping_pong(i as usize, FRAMES)];
             rows.clear();
             pipe.process(view, i, rodtrack_core::Timestamp(0), &mut rows)
                 .unwrap();
