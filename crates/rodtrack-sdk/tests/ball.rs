@@ -510,3 +510,43 @@ fn a_ball_along_the_end_wall_is_followed() {
     assert!(missed.is_empty(), "not detected: {missed:?}");
     assert!(worst_mm <= 3.0, "worst error {worst_mm:.2} mm");
 }
+
+/// The detector around a prediction: the rays from a prediction near the ball (a third of its
+/// image radius off) give the ball's place, and so does one too far off for the rays' centre
+/// to be kept (1.5 radii: the window around it finds the ball), each within a millimetre of
+/// the coarse scan's detection of the same frame.
+#[test]
+fn a_prediction_near_or_off_the_ball_finds_it_where_the_scan_does() {
+    use rodtrack_core::ball::BallDetector;
+    use rodtrack_core::FrameView;
+    let mut sim = build_simulation("ball", Some(40), 3, false, "default").unwrap();
+    let cal = sim.calibrated_camera_with_ball(0, 3).unwrap();
+    let mut det = BallDetector::new(&cal).unwrap().unwrap();
+    let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
+    let mut compared = 0;
+    for f in (0..40).step_by(4) {
+        let info = sim.render(f, 0, &mut buf).unwrap();
+        let view = FrameView::new(&buf, info.width, info.height, info.stride, info.format).unwrap();
+        let Some(scan) = det.detect(&view, None) else {
+            continue;
+        };
+        let (u, v) = (scan.u_px, scan.v_px);
+        let r = rodtrack_core::calib::ball::expected_radius_px(det.camera(), u, v, det.radius_mm())
+            .unwrap();
+        for (k, off) in [(0.33f64, 0.2f64), (1.5, 1.1)].into_iter().enumerate() {
+            let (du, dv) = (off.0 * r * off.1.cos(), off.0 * r * off.1.sin());
+            let near = det
+                .detect(&view, Some((u + du, v + dv)))
+                .unwrap_or_else(|| {
+                    panic!("frame {f}: no ball from a prediction {} radii off", off.0)
+                });
+            let e = (near.x_mm - scan.x_mm).hypot(near.y_mm - scan.y_mm);
+            assert!(
+                e <= 1.0,
+                "frame {f}, prediction {k}: {e:.2} mm from the scan's"
+            );
+        }
+        compared += 1;
+    }
+    assert!(compared >= 8, "{compared} frames with a ball");
+}
