@@ -511,10 +511,9 @@ fn a_ball_along_the_end_wall_is_followed() {
     assert!(worst_mm <= 3.0, "worst error {worst_mm:.2} mm");
 }
 
-/// The detector around a prediction: the rays from a prediction near the ball (a third of its
-/// image radius off) give the ball's place, and so does one too far off for the rays' centre
-/// to be kept (1.5 radii: the window around it finds the ball), each within a millimetre of
-/// the coarse scan's detection of the same frame.
+/// The detector around a prediction: a prediction a third of the ball's image radius off, and
+/// one 1.5 radii off (the window around it still holds the ball), each give the ball's place
+/// within a millimetre of the coarse scan's detection of the same frame.
 #[test]
 fn a_prediction_near_or_off_the_ball_finds_it_where_the_scan_does() {
     use rodtrack_core::ball::BallDetector;

@@ -6,8 +6,8 @@ use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::memo::{leaves_block, AlphaMemo, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
-    MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RECAST_OFF_RADII,
-    RESIDUAL_RATIO_MAX, WINDOW_RADII,
+    MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
+    WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -213,9 +213,8 @@ impl BallDetector {
         self.coarse_step
     }
 
-    /// Looks for the ball: around `around_px` (the prediction) when given, first by the rays
-    /// from it, then in a window around it, else (or when neither finds it) over the whole
-    /// field with the coarse step.
+    /// Looks for the ball: in a window around `around_px` (the prediction) when given, else
+    /// (or when the window finds nothing) over the whole field with the coarse step.
     pub fn detect(&mut self, view: &FrameView, around_px: Option<(f64, f64)>) -> Option<Detection> {
         if view.width() / 2 != self.qw || view.height() / 2 != self.qh {
             return None;
@@ -224,34 +223,9 @@ impl BallDetector {
             if let Some(r) = expected_radius_px(&self.cam, u, v, self.radius_mm) {
                 let rq = 0.5 * r;
                 let (cx, cy) = ((u - 0.5) / 2.0, (v - 0.5) / 2.0);
-                // First the rays from where the prediction puts the ball (a rolling ball is
-                // within a fraction of its radius of it): kept when the centre they give is
-                // within the ball's image radius of the prediction, with no window scanned.
-                // Rays from more than `RECAST_OFF_RADII` off the centre sample the outline
-                // unevenly: then they are cast again from the centre found.
-                let from = |cx_q: f64, cy_q: f64| Blob {
-                    cx_q,
-                    cy_q,
-                    rq,
-                    score: 0.0,
-                };
-                let mut origin = (u, v);
-                for _ in 0..2 {
-                    let blob = from((origin.0 - 0.5) / 2.0, (origin.1 - 0.5) / 2.0);
-                    let Some(d) = self
-                        .fit(view, blob, Some((u, v)))
-                        .filter(|d| (d.u_px - u).hypot(d.v_px - v) <= r)
-                    else {
-                        break;
-                    };
-                    if (d.u_px - origin.0).hypot(d.v_px - origin.1) <= RECAST_OFF_RADII * r {
-                        return Some(d);
-                    }
-                    origin = (d.u_px, d.v_px);
-                }
-                // Else the ball's blob near the prediction, then in the window a bounce can
-                // reach.
                 let step = ((rq / 4.0).floor() as usize).clamp(1, 2);
+                // First the ball where the prediction puts it (a rolling ball is within a
+                // fraction of its radius of it), then the window a bounce can reach.
                 for radii in [NEAR_WINDOW_RADII, WINDOW_RADII] {
                     let h = radii * rq + 2.0;
                     let region = [

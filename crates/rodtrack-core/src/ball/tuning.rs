@@ -30,12 +30,6 @@ pub const WINDOW_RADII: f64 = 3.0;
 /// 10 mm in a frame at 200 fps, and the filter predicts it to about a millimetre); only when
 /// that finds no ball is the [`WINDOW_RADII`] window searched.
 pub const NEAR_WINDOW_RADII: f64 = 1.5;
-/// How far from the centre it finds, in the ball's image radii, the rays cast from the
-/// prediction may start and still be kept: from an origin `e` radii off the centre the rays
-/// meet the outline with a density that varies by `1 +- e` around it (more edge points on the
-/// near side), which a blurred or partly hidden outline turns into a bias; beyond it they are
-/// cast again from the centre found. A tenth: the density within 10 % of even.
-pub const RECAST_OFF_RADII: f64 = 0.1;
 /// How long the filter predicts a ball it does not see before reporting it lost, s.
 pub const PREDICT_S: f64 = 0.1;
 /// White acceleration of the constant-velocity filter, mm/s^2 (about 1 g: rolling, spin and
