@@ -509,6 +509,39 @@ fn a_ball_along_the_end_wall_is_followed() {
     assert!(half >= 10, "only {half} frames at least half in view");
     assert!(missed.is_empty(), "not detected: {missed:?}");
     assert!(worst_mm <= 3.0, "worst error {worst_mm:.2} mm");
+
+    // The fewer points hold only near a prediction: frame 203 alone (6 or 7 points) is found
+    // from a prediction at the ball, not from one 1.5 image radii off (the fit's centre is
+    // then farther than a radius from it) nor by the coarse scan (8 points).
+    use rodtrack_core::ball::BallDetector;
+    let mut det = BallDetector::new(&cal.cameras[0]).unwrap().unwrap();
+    let info = sim.render(203, 0, &mut buf).unwrap();
+    let view = FrameView::new(&buf, info.width, info.height, info.stride, info.format).unwrap();
+    let truth = sim.ball_truth(203).unwrap();
+    let (u, v) = det
+        .camera()
+        .project([truth.x_mm, truth.y_mm, det.radius_mm()])
+        .unwrap();
+    let r = rodtrack_core::calib::ball::expected_radius_px(det.camera(), u, v, det.radius_mm())
+        .unwrap();
+    let at = det
+        .detect(&view, Some((u, v)))
+        .expect("found from a prediction at the ball");
+    let e = (at.x_mm - truth.x_mm).hypot(at.y_mm - truth.y_mm);
+    assert!(
+        at.edge_points < 8 && e <= 3.0,
+        "{} points, {e:.2} mm",
+        at.edge_points
+    );
+    let off = det.detect(&view, Some((u + 1.5 * r, v)));
+    assert!(
+        off.is_none(),
+        "found from a prediction 1.5 radii off: {off:?}"
+    );
+    assert!(
+        det.detect(&view, None).is_none(),
+        "found by the coarse scan"
+    );
 }
 
 /// The detector around a prediction: a prediction a third of the ball's image radius off, and

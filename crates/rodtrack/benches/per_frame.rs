@@ -2,8 +2,8 @@
 //! simulated table, in enhanced and paper mode (criterion), and the enhanced mode on a camera
 //! above the middle of the table that sees all 8 rods. The frames are a sequence of
 //! gameplay (rods moving and turning at 200 fps), played forward and backward (see
-//! [`ping_pong`]), so that what a tracker learns or
-//! reuses from frame to frame is exercised as in a real run; the per-stage benchmarks run one
+//! [`ping_pong`]), so that what a tracker learns or reuses from frame to frame is exercised
+//! as in a real run; the per-stage benchmarks run one
 //! stage on one frame. The `ball` group measures the ball on frames of the `ball` scenario (a
 //! ball rolling among the figures): the tracker while it follows the ball (a window around
 //! the prediction), a full re-detection (the coarse scan of the whole field), and the whole
@@ -303,6 +303,8 @@ fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
     let mut g = c.benchmark_group(group);
     let mut i = 0;
     let mut frame = 2 * FRAMES as u64;
+    // The `ok` frames are consecutive here (the tracker follows the ball on all 100): played
+    // back and forth, each step is one frame's motion.
     g.bench_function("ball_tracking", |b| {
         b.iter(|| {
             let k = ok[ping_pong(i, ok.len())];

@@ -642,8 +642,9 @@ impl BallDetector {
         }
         let (u, v) = self.cam.project([c[0], c[1], self.radius_mm])?;
         // Fewer rays than a fit alone needs only where the prediction stands in for the rest:
-        // the centre within the ball's image radius of it.
-        let near = |(pu, pv): (f64, f64)| (u - pu).hypot(v - pv) <= 2.0 * rq;
+        // the centre within the ball's image radius (`2 rq` px) of it.
+        let radius_px = 2.0 * rq;
+        let near = |(pu, pv): (f64, f64)| (u - pu).hypot(v - pv) <= radius_px;
         if n < MIN_EDGE_POINTS && !predicted_px.is_some_and(near) {
             return None;
         }
