@@ -245,11 +245,23 @@ fn per_stage(c: &mut Criterion) {
     g.finish();
 }
 
-/// Frames of the `ball` scenario (camera 0) and that camera's calibration with the table frame
-/// and the ball's colour, from the simulated clicks.
-fn ball_setup() -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
+/// Frames of the `ball` scenario (the first of `cameras`, or camera 0 of the reference table)
+/// and that camera's calibration with the table frame and the ball's colour, from the
+/// simulated clicks.
+fn ball_setup(cameras: Option<Vec<SimCamera>>) -> (Vec<Vec<u8>>, CameraCalibration, Geometry) {
     let seed = 3;
-    let mut sim = build_simulation("ball", Some(FRAMES), seed, false, "default").unwrap();
+    let mut sim = match cameras {
+        None => build_simulation("ball", Some(FRAMES), seed, false, "default").unwrap(),
+        Some(cameras) => {
+            let scene = SceneConfig::default();
+            let sc = Scenario::by_name("ball", &scene, seed)
+                .unwrap()
+                .with_frames(FRAMES);
+            Simulation::new(scene, cameras, sc, RenderMode::Fast)
+                .unwrap()
+                .with_seed(seed)
+        }
+    };
     let cal = sim.calibrated_camera_with_ball(0, seed).unwrap();
     let mut buf = vec![0u8; sim.frame_bytes(0).unwrap()];
     let mut frames = Vec::new();
@@ -276,7 +288,7 @@ fn ball_cpu(c: &mut Criterion<CpuTime>) {
 }
 
 fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
-    let (frames, cal, (w, h, stride, fmt)) = ball_setup();
+    let (frames, cal, (w, h, stride, fmt)) = ball_setup(None);
     let views: Vec<FrameView> = frames
         .iter()
         .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
@@ -322,15 +334,48 @@ fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
             std::hint::black_box(detector.detect(&views[k], None))
         })
     });
-    let mut pipe = CameraPipeline::new(&cal, Mode::Enhanced).unwrap();
-    let mut tracker = BallTracker::new(&cal)
+    table_state(&mut g, &views, &cal);
+    g.finish();
+    // The whole table: the camera above the middle that sees all 8 rods, and the ball.
+    let (frames, cal, (w, h, stride, fmt)) = ball_setup(Some(all_rods_camera()));
+    let views: Vec<FrameView> = frames
+        .iter()
+        .map(|b| FrameView::new(b, w, h, stride, fmt).unwrap())
+        .collect();
+    let mut g = c.benchmark_group(group);
+    table_state(&mut g, &views, &cal);
+    g.finish();
+}
+
+/// Every rod the camera sees plus the ball, per camera frame, over `views` played back and
+/// forth.
+fn table_state<M: Measurement>(
+    g: &mut criterion::BenchmarkGroup<'_, M>,
+    views: &[FrameView],
+    cal: &CameraCalibration,
+) {
+    let mut pipe = CameraPipeline::new(cal, Mode::Enhanced).unwrap();
+    let mut tracker = BallTracker::new(cal)
         .unwrap()
         .expect("the ball is calibrated");
+    let followed = (0..views.len())
+        .filter(|&i| {
+            tracker
+                .process(&views[i], i as u64, frame_time(i as u64, 200.0))
+                .status
+                == BallStatus::Ok
+        })
+        .count();
+    assert!(
+        followed > views.len() / 2,
+        "the ball is followed on {followed} of {} frames",
+        views.len()
+    );
     let mut rows = Vec::with_capacity(16);
-    let mut i = 0u64;
+    let mut i = views.len() as u64;
     g.bench_function(format!("table_{}_rods_and_ball", cal.rods.len()), |b| {
         b.iter(|| {
-            let view = &views[ping_pong(i as usize, FRAMES)];
+            let view = &views[ping_pong(i as usize, views.len())];
             rows.clear();
             pipe.process(view, i, rodtrack_core::Timestamp(0), &mut rows)
                 .unwrap();
@@ -340,7 +385,6 @@ fn ball_in<M: Measurement>(c: &mut Criterion<M>, group: &str) {
             std::hint::black_box(ball)
         })
     });
-    g.finish();
 }
 
 criterion_group!(benches, per_frame, per_stage, ball);

@@ -390,12 +390,7 @@ impl BallDetector {
                 [a(ix, iy), a(ix + 1, iy), a(ix, iy + 1), a(ix + 1, iy + 1)]
             }
         };
-        if [a00, a10, a01, a11].contains(&OFF_AXIS) {
-            return Some(OFF_AXIS);
-        }
-        let top = a00 * (1.0 - fx) + a10 * fx;
-        let bot = a01 * (1.0 - fx) + a11 * fx;
-        Some(top * (1.0 - fy) + bot * fy)
+        Some(bilinear([a00, a10, a01, a11], fx, fy))
     }
 
     /// The quad `(floor x_q, floor y_q)` of a bilinear sample at `(x_q, y_q)`, when the sample's
@@ -411,20 +406,33 @@ impl BallDetector {
     }
 
     /// The block of quads from `(floor x_q, floor y_q)` to the next ones, `[x0, y0, x1, y1)`
-    /// in quads, when the memo covers it, and whether its four quads are all surely the ball's
-    /// colour (each at least [`SURE_INSIDE`]: every bilinear sample in it is then at least
-    /// 0.5, and none off the colours' axis). `None` where [`BallDetector::alpha_at`] gives
-    /// `None` or the memo does not reach.
+    /// in quads, when the memo covers it, with its four quads' colour positions (`[x0 y0, x1
+    /// y0, x0 y1, x1 y1]`, those [`BallDetector::alpha_at`] interpolates between for a sample
+    /// in the block) and whether they are all surely the ball's colour (each at least
+    /// [`SURE_INSIDE`]: every bilinear sample in it is then at least 0.5, and none off the
+    /// colours' axis). `None` where [`BallDetector::alpha_at`] gives `None` or the memo does
+    /// not reach.
     #[inline]
-    fn sure_block(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<([f64; 4], bool)> {
+    fn sure_block(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<Block> {
         let (ix, iy) = self.base_quad(x_q, y_q)?;
         let c = self.alpha.block(ix, iy)?;
         let w = self.alpha.w;
-        let sure = [c, c + 1, c + w, c + w + 1]
-            .into_iter()
-            .all(|k| self.memo_alpha(view, k) >= SURE_INSIDE);
+        // Four calls, not an array's `map`: that one is not inlined.
+        let corners = [
+            self.memo_alpha(view, c),
+            self.memo_alpha(view, c + 1),
+            self.memo_alpha(view, c + w),
+            self.memo_alpha(view, c + w + 1),
+        ];
         let (x0, y0) = (ix as f64, iy as f64);
-        Some(([x0, y0, x0 + 1.0, y0 + 1.0], sure))
+        Some(Block {
+            quads: [x0, y0, x0 + 1.0, y0 + 1.0],
+            sure: corners[0] >= SURE_INSIDE
+                && corners[1] >= SURE_INSIDE
+                && corners[2] >= SURE_INSIDE
+                && corners[3] >= SURE_INSIDE,
+            corners,
+        })
     }
 
     /// The memo's colour position of cell `c`, computed on first use.
@@ -513,16 +521,22 @@ impl BallDetector {
             let mut edge = None;
             // Samples of the ball's colour since the last occluder (`None`: none crossed).
             let mut since_occluder: Option<usize> = None;
-            // The block the last sample fell in, `[x0, y0, x1, y1)`, and whether it is sure.
-            let mut block: Option<([f64; 4], bool)> = None;
+            // The block the last sample fell in.
+            let mut block: Option<Block> = None;
             while t <= 1.8 * rq + 1.0 {
                 let (x, y) = (blob.cx_q + t * c, blob.cy_q + t * s);
+                let mut in_block = None;
                 if blocks {
                     let within = |b: &[f64; 4]| x >= b[0] && x < b[2] && y >= b[1] && y < b[3];
-                    if !block.is_some_and(|(b, _)| within(&b)) {
+                    if !block.is_some_and(|b| within(&b.quads)) {
                         block = self.sure_block(view, x, y);
                     }
-                    if let Some((b, true)) = block {
+                    if let Some(Block {
+                        quads: b,
+                        sure: true,
+                        ..
+                    }) = block
+                    {
                         // This sample and the next ones the ray surely keeps in the block.
                         let stop =
                             (1.8 * rq + 1.0).min(leaves_block(b, [blob.cx_q, blob.cy_q], [c, s]));
@@ -538,8 +552,14 @@ impl BallDetector {
                         t = next;
                         continue;
                     }
+                    // The sample is in the block (checked or just found): its value from the
+                    // block's corners, as `alpha_at` would read them.
+                    in_block = block.map(|b| {
+                        let (fx, fy) = ((x - b.quads[0]) as f32, (y - b.quads[1]) as f32);
+                        bilinear(b.corners, fx, fy)
+                    });
                 }
-                let Some(a) = self.alpha_at(view, x, y) else {
+                let Some(a) = in_block.or_else(|| self.alpha_at(view, x, y)) else {
                     break;
                 };
                 if a == OFF_AXIS {
@@ -707,6 +727,29 @@ impl BallDetector {
         }
         (c[0].is_finite() && c[1].is_finite()).then_some(c)
     }
+}
+
+/// A block of quads a ray's samples fall in: see [`BallDetector::sure_block`].
+#[derive(Debug, Clone, Copy)]
+struct Block {
+    /// `[x0, y0, x1, y1)`, quads.
+    quads: [f64; 4],
+    /// The four quads' colour positions, `[x0 y0, x1 y0, x0 y1, x1 y1]`.
+    corners: [f32; 4],
+    /// All four surely the ball's colour.
+    sure: bool,
+}
+
+/// The bilinear value at `(fx, fy)` (each in `[0, 1)`) between the colour positions `[a00,
+/// a10, a01, a11]` of four neighbouring quads; [`OFF_AXIS`] when any of them is.
+#[inline(always)]
+fn bilinear([a00, a10, a01, a11]: [f32; 4], fx: f32, fy: f32) -> f32 {
+    if [a00, a10, a01, a11].contains(&OFF_AXIS) {
+        return OFF_AXIS;
+    }
+    let top = a00 * (1.0 - fx) + a10 * fx;
+    let bot = a01 * (1.0 - fx) + a11 * fx;
+    top * (1.0 - fy) + bot * fy
 }
 
 /// Reads one byte of every 64 (a cache line) of the pixel rows of the quads `region` covers,
