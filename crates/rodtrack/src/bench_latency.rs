@@ -33,13 +33,13 @@
 use crate::choices::{HandoffArg, WriteArg};
 use crate::track::CliHooks;
 use anyhow::{Context, Result};
-use rodtrack_core::calib::CameraCalibration;
+use rodtrack_core::calib::{CalibrationFile, CameraCalibration, CALIBRATION_VERSION};
 use rodtrack_core::{CameraPipeline, Mode};
 use rodtrack_io::runtime::{
     Handoff, LatencyHistogram, LatencySummary, PipelineConfig, PipelineReport, WriteMode,
 };
 use rodtrack_io::source::OpenOptions;
-use rodtrack_io::{CsvSink, FrameBuffer, FrameSource, MultiSink, UdpSink};
+use rodtrack_io::{BallCsvSink, CsvSink, FrameBuffer, FrameSource, MultiSink, UdpSink};
 use rodtrack_sdk::{pipeline_config, Session, SessionCamera, SessionOptions};
 use std::net::UdpSocket;
 use std::path::PathBuf;
@@ -49,6 +49,8 @@ use std::time::{Duration, Instant};
 
 /// The latency target, p99.
 const TARGET_P99: Duration = Duration::from_micros(200);
+/// The latency target with the ball, p99.
+const TARGET_BALL_P99: Duration = Duration::from_micros(300);
 
 /// Arguments of `rodtrack bench-latency`.
 #[derive(Debug, clap::Args)]
@@ -68,6 +70,12 @@ pub struct Args {
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Track the ball too (the calibration then reads the ball's colour from the simulated
+    /// click): each camera's thread runs the ball tracker on the frame before its rods, and
+    /// the ball rows go to a null writer (ordered by frame set, written in the thread of the
+    /// set's last camera before its rods' rows: the set's latency bounds the ball's).
+    #[arg(long)]
+    pub ball: bool,
     /// Write the measurements to this CSV file (default: a null writer).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -137,6 +145,8 @@ struct RunResult {
     lateness: LatencySummary,
     noise: Option<NoiseFloor>,
     datagrams: Option<u64>,
+    /// The ball rows written (`--ball`).
+    ball: Option<rodtrack_sdk::BallCounts>,
 }
 
 impl RunResult {
@@ -168,17 +178,21 @@ pub fn run(args: Args) -> Result<()> {
         "default",
     )?;
     let cals = (0..ncam)
-        .map(|c| calibrate_sim_camera(&mut sim, c, args.seed))
+        .map(|c| match args.ball {
+            true => Ok(sim.calibrated_camera_with_ball(c, args.seed)?),
+            false => calibrate_sim_camera(&mut sim, c, args.seed),
+        })
         .collect::<Result<Vec<_>>>()?;
     drop(sim);
     let stop = Arc::new(AtomicBool::new(false));
     crate::interrupt::install(stop.clone());
     let config = config(&args);
     eprintln!(
-        "{} run(s) of {} frames x {ncam} camera(s) of `{}` ({}), Live mode{}, {}, {}, spin {} us, CSV to {}{} ...",
+        "{} run(s) of {} frames x {ncam} camera(s) of `{}`{} ({}), Live mode{}, {}, {}, spin {} us, CSV to {}{} ...",
         args.runs,
         args.frames,
         args.scenario,
+        if args.ball { ", rods and ball" } else { "" },
         if args.prerender > 0 {
             format!(
                 "{} pre-rendered frames, cycled",
@@ -217,7 +231,7 @@ pub fn run(args: Args) -> Result<()> {
         print_run(run + 1, &r);
         results.push(r);
     }
-    print_summary(&results);
+    print_summary(&results, args.ball);
     Ok(())
 }
 
@@ -290,7 +304,16 @@ fn run_once(
         config: Some(config),
         ..SessionOptions::default()
     };
-    let (outcome, sink) = Session::from_cameras(cameras, options)
+    let mut session = Session::from_cameras(cameras, options);
+    if args.ball {
+        let cal = CalibrationFile {
+            version: CALIBRATION_VERSION,
+            cameras: cals.to_vec(),
+        };
+        let sink = BallCsvSink::new(std::io::sink(), "null writer")?;
+        session = session.with_ball(&cal, Box::new(sink))?;
+    }
+    let (outcome, sink) = session
         .with_stop_flag(stop.clone())
         .with_hooks(CliHooks::new(false, None))
         .run(sink)?;
@@ -309,6 +332,7 @@ fn run_once(
         lateness,
         noise: None,
         datagrams,
+        ball: outcome.ball,
     })
 }
 
@@ -349,6 +373,12 @@ fn print_run(run: u32, r: &RunResult) {
         us(r.lateness.p50),
         us(r.lateness.p99)
     );
+    if let Some(b) = &r.ball {
+        println!(
+            "  ball rows (each camera's and the fused ones): {} ok, {} predicted, {} lost",
+            b.ok, b.predicted, b.lost
+        );
+    }
     if let Some(n) = &r.noise {
         println!("  noise floor: {n}");
     }
@@ -367,7 +397,7 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
-fn print_summary(results: &[RunResult]) {
+fn print_summary(results: &[RunResult], ball: bool) {
     if results.is_empty() {
         return;
     }
@@ -448,14 +478,17 @@ fn print_summary(results: &[RunResult]) {
             n(|x| &x.compute, |l| l.p99) - n(|x| &x.compute, |l| l.p50),
         );
     }
-    if p99 <= us(TARGET_P99) {
-        println!("target p99 <= {:.0} us: met ({p99:.0} us)", us(TARGET_P99));
+    // The rods' target, or with the ball the ball issue's (frame to written row, ball
+    // included).
+    let target = if ball { TARGET_BALL_P99 } else { TARGET_P99 };
+    if p99 <= us(target) {
+        println!("target p99 <= {:.0} us: met ({p99:.0} us)", us(target));
     } else {
         println!(
             "target p99 <= {:.0} us: NOT met, p99 is {p99:.0} us ({:.0} us over, x{:.1})",
-            us(TARGET_P99),
-            p99 - us(TARGET_P99),
-            p99 / us(TARGET_P99)
+            us(target),
+            p99 - us(target),
+            p99 / us(target)
         );
     }
 }

@@ -223,3 +223,43 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         "{err}"
     );
 }
+
+/// `bench-latency --ball` runs the ball tracker in the live path: it reports the ball rows it
+/// wrote, most of them `ok` (the `ball` scenario: one ball rolling in view of both cameras),
+/// and judges the latency against the ball's target.
+#[test]
+fn bench_latency_measures_the_live_path_with_the_ball() {
+    let o = rodtrack(&[
+        "bench-latency",
+        "--scenario",
+        "ball",
+        "--frames",
+        "60",
+        "--prerender",
+        "60",
+        "--runs",
+        "1",
+        "--noise-samples",
+        "0",
+        "--ball",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let line = out
+        .lines()
+        .find(|l| l.contains("ball rows"))
+        .unwrap_or_else(|| panic!("no ball rows reported: {out}"));
+    let ok: u64 = line
+        .split(": ")
+        .nth(1)
+        .and_then(|t| t.split(" ok").next())
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("unreadable: {line}"));
+    // 60 frame sets: 2 camera rows and a fused row each.
+    assert!(ok >= 150, "{line}");
+    assert!(out.contains("target p99 <= 300 us"), "{out}");
+}

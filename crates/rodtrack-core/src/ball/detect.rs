@@ -173,13 +173,7 @@ impl BallDetector {
             octant: Vec::with_capacity(N_RAYS),
             resid: Vec::with_capacity(N_RAYS),
             sorted: Vec::with_capacity(N_RAYS),
-            alpha: AlphaMemo {
-                x0: 0,
-                y0: 0,
-                w: 0,
-                h: 0,
-                cells: Vec::with_capacity(memo_side * memo_side),
-            },
+            alpha: AlphaMemo::new(memo_side),
         }))
     }
 

@@ -12,14 +12,30 @@ pub(super) struct AlphaMemo {
     pub(super) w: usize,
     pub(super) h: usize,
     pub(super) cells: Vec<f32>,
+    /// The largest square's side, cells: the buffer is allocated for it.
+    max_side: usize,
 }
 
 impl AlphaMemo {
+    /// A memo for squares of up to `max_side` cells a side.
+    pub(super) fn new(max_side: usize) -> AlphaMemo {
+        AlphaMemo {
+            x0: 0,
+            y0: 0,
+            w: 0,
+            h: 0,
+            cells: Vec::with_capacity(max_side * max_side),
+            max_side,
+        }
+    }
+
     /// Starts a fit over the square of half size `half_q` quads around `(cx_q, cy_q)`; false
-    /// when it does not fit the buffer (then the rays compute every sample).
+    /// when it is larger than the memo's largest square (then the rays compute every sample).
+    /// The buffer's size is the memo's own, not its capacity: a clone of the detector (whose
+    /// buffer has only the length it had) grows it once and keeps the fast path.
     pub(super) fn start(&mut self, cx_q: f64, cy_q: f64, half_q: f64) -> bool {
         let n = (2.0 * half_q).ceil() as usize + 3;
-        if !(half_q.is_finite() && n * n <= self.cells.capacity()) {
+        if !(half_q.is_finite() && n <= self.max_side) {
             self.w = 0;
             self.h = 0;
             return false;
@@ -87,6 +103,19 @@ pub(super) const SURE_INSIDE: f32 = 0.5 + 1e-3;
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// A clone of a memo (a cloned detector) takes the same squares as the memo: a `Vec`'s
+    /// clone has the length, not the capacity, of the original.
+    #[test]
+    fn a_cloned_memo_takes_the_squares_the_memo_takes() {
+        let mut memo = AlphaMemo::new(13);
+        assert!(memo.start(50.0, 50.0, 5.0));
+        for mut m in [memo.clone(), AlphaMemo::new(13).clone()] {
+            assert!(m.start(50.0, 50.0, 5.0));
+            assert_eq!((m.w, m.h, m.cells.len()), (13, 13, 169));
+            assert!(!m.start(50.0, 50.0, 5.5));
+        }
+    }
 
     proptest! {
         /// Every point of a ray before [`leaves_block`] floors to the block's quad, on both
