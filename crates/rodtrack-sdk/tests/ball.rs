@@ -582,3 +582,54 @@ fn a_prediction_near_or_off_the_ball_finds_it_where_the_scan_does() {
     }
     assert!(compared >= 8, "{compared} frames with a ball");
 }
+
+/// A ball the coarse scan of the whole field finds is found alike by the scan of at least one
+/// of its bands (the tracker scans one band per frame while it predicts a hidden ball): the
+/// same blob's cells on the same grid, so the same fit but for the last bits of the blob's
+/// centre (a band's rows counted from its own first row). The bands overlap by a ball, so
+/// that none cuts it in two. Over the ball scenario on tables as built, both cameras.
+#[test]
+fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
+    use rodtrack_core::ball::{tuning::PREDICTED_SCAN_BANDS, BallDetector};
+    use rodtrack_core::FrameView;
+    let (mut compared, mut near_border) = (0usize, 0usize);
+    for (seed, setup) in [(1, "asbuilt:1"), (2, "asbuilt:2")] {
+        let frames = 60;
+        let mut sim = build_simulation("ball", Some(frames), seed, false, setup).unwrap();
+        for cam in 0..sim.cameras().len() {
+            let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
+            let mut det = BallDetector::new(&cal).unwrap().unwrap();
+            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+            for f in 0..frames {
+                let meta = sim.render(f, cam, &mut buf).unwrap();
+                let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
+                    .unwrap();
+                let Some(whole) = det.detect(&view, None) else {
+                    continue;
+                };
+                let found: Vec<usize> = (0..PREDICTED_SCAN_BANDS)
+                    .filter(|&k| {
+                        det.detect_in_band(&view, None, Some((k, PREDICTED_SCAN_BANDS)))
+                            .is_some_and(|d| {
+                                (d.u_px - whole.u_px).abs() < 1e-9
+                                    && (d.v_px - whole.v_px).abs() < 1e-9
+                                    && (d.x_mm - whole.x_mm).abs() < 1e-9
+                                    && (d.y_mm - whole.y_mm).abs() < 1e-9
+                                    && d.edge_points == whole.edge_points
+                            })
+                    })
+                    .collect();
+                assert!(
+                    !found.is_empty(),
+                    "{setup} camera {cam} frame {f}: no band finds the ball at ({:.1}, {:.1}) px",
+                    whole.u_px,
+                    whole.v_px
+                );
+                compared += 1;
+                near_border += (found.len() > 1) as usize;
+            }
+        }
+    }
+    eprintln!("{compared} detections, {near_border} found by two bands");
+    assert!(compared > 100, "too few detections: {compared}");
+}

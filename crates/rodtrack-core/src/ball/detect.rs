@@ -210,6 +210,19 @@ impl BallDetector {
     /// Looks for the ball: in a window around `around_px` (the prediction) when given, else
     /// (or when the window finds nothing) over the whole field with the coarse step.
     pub fn detect(&mut self, view: &FrameView, around_px: Option<(f64, f64)>) -> Option<Detection> {
+        self.detect_in_band(view, around_px, None)
+    }
+
+    /// [`BallDetector::detect`] with the coarse scan limited to band `k` of `n` (`band = (k,
+    /// n)`): the field's rows cut in `n` bands, each widened by a ball's extent and a step on
+    /// both sides so that a ball on a border lies whole in a band, its rows on the whole
+    /// scan's grid (a ball a band holds whole is found there as the whole scan finds it).
+    pub fn detect_in_band(
+        &mut self,
+        view: &FrameView,
+        around_px: Option<(f64, f64)>,
+        band: Option<(usize, usize)>,
+    ) -> Option<Detection> {
         if view.width() / 2 != self.qw || view.height() / 2 != self.qh {
             return None;
         }
@@ -239,7 +252,17 @@ impl BallDetector {
                 }
             }
         }
-        self.scan_and_fit(view, self.field_q, self.coarse_step, None)
+        let mut region = self.field_q;
+        if let Some((k, n)) = band.filter(|&(k, n)| n > 1 && k < n) {
+            let [_, y0, _, y1] = self.field_q;
+            let h = (y1 - y0).div_ceil(n);
+            let margin = (EXTENT_RATIO_MAX * 2.0 * self.rq_high).ceil() as usize + self.coarse_step;
+            // On the whole scan's grid of rows: a band's cells are the whole scan's.
+            let step = self.coarse_step;
+            region[1] = y0 + (k * h).saturating_sub(margin) / step * step;
+            region[3] = (y0 + (k + 1) * h + margin).min(y1);
+        }
+        self.scan_and_fit(view, region, self.coarse_step, None)
     }
 
     /// The best blob of `region` fitted; `predicted_px`: where the tracker predicts the ball

@@ -3,7 +3,9 @@
 //! short occlusions.
 
 use super::detect::{BallDetector, Detection};
-use super::tuning::{ACCEL_MM_S2, GATE_SIGMAS, MAX_SPEED_MM_S, MEAS_SIGMA_MIN_MM, PREDICT_S};
+use super::tuning::{
+    ACCEL_MM_S2, GATE_SIGMAS, MAX_SPEED_MM_S, MEAS_SIGMA_MIN_MM, PREDICTED_SCAN_BANDS, PREDICT_S,
+};
 use super::{BallRow, BallStatus};
 use crate::calib::CameraCalibration;
 use crate::{CameraId, CoreError, FrameView, Timestamp};
@@ -81,6 +83,10 @@ pub struct BallTracker {
     meas_sigma_mm: f64,
     /// The standard deviation of the last row's position, mm (see [`BallTracker::row_sigma_mm`]).
     row_sigma_mm: f64,
+    /// The last frame's ball was not seen.
+    unseen: bool,
+    /// The band of the coarse scan the next predicted frame searches.
+    scan_band: usize,
 }
 
 impl BallTracker {
@@ -102,6 +108,8 @@ impl BallTracker {
                 systematic_mm,
                 meas_sigma_mm: 0.0,
                 row_sigma_mm: f64::INFINITY,
+                unseen: false,
+                scan_band: 0,
             }
         }))
     }
@@ -133,7 +141,15 @@ impl BallTracker {
                 .camera()
                 .project([self.axes[0].p, self.axes[1].p, self.det.radius_mm()])
         });
-        let det = self.det.detect(view, around);
+        // A ball the window misses is searched on the whole field (a kick may have sent it
+        // beyond the window); while it stays unseen and predicted, band by band.
+        let band = (around.is_some() && self.unseen).then(|| {
+            let k = self.scan_band;
+            self.scan_band = (k + 1) % PREDICTED_SCAN_BANDS;
+            (k, PREDICTED_SCAN_BANDS)
+        });
+        let det = self.det.detect_in_band(view, around, band);
+        self.unseen = det.is_none();
         if let Some(d) = &det {
             self.update(d, timestamp_ns);
         }

@@ -42,3 +42,10 @@ pub const MEAS_SIGMA_MIN_MM: f64 = 0.1;
 /// The fastest ball the filter expects at first sight, mm/s (the hardest shots,
 /// 15 m/s): the velocity's prior standard deviation before a second detection gives it.
 pub const MAX_SPEED_MM_S: f64 = 15_000.0;
+/// Bands the coarse scan of the whole field is cut into while the filter predicts a ball it
+/// has not seen for more than a frame (under a figure, a hand): one band per frame, the whole
+/// field every this many frames (20 ms at 200 fps, within [`PREDICT_S`]), so that a hidden
+/// ball costs a frame a fraction of a full re-detection. The first frame the window misses
+/// the ball, and every frame once the ball is lost for longer than the prediction, scan the
+/// whole field.
+pub const PREDICTED_SCAN_BANDS: usize = 4;
