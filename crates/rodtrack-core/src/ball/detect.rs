@@ -3,7 +3,7 @@
 //! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
 
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
-use super::memo::{leaves_block, AlphaMemo, SURE_INSIDE};
+use super::memo::{bilinear, leaves_block, AlphaMemo, Block, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
     MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
@@ -744,29 +744,6 @@ impl BallDetector {
         }
         (c[0].is_finite() && c[1].is_finite()).then_some(c)
     }
-}
-
-/// A block of quads a ray's samples fall in: see [`BallDetector::sure_block`].
-#[derive(Debug, Clone, Copy)]
-struct Block {
-    /// `[x0, y0, x1, y1)`, quads.
-    quads: [f64; 4],
-    /// The four quads' colour positions, `[x0 y0, x1 y0, x0 y1, x1 y1]`.
-    corners: [f32; 4],
-    /// All four surely the ball's colour.
-    sure: bool,
-}
-
-/// The bilinear value at `(fx, fy)` (each in `[0, 1)`) between the colour positions `[a00,
-/// a10, a01, a11]` of four neighbouring quads; [`OFF_AXIS`] when any of them is.
-#[inline(always)]
-fn bilinear([a00, a10, a01, a11]: [f32; 4], fx: f32, fy: f32) -> f32 {
-    if [a00, a10, a01, a11].contains(&OFF_AXIS) {
-        return OFF_AXIS;
-    }
-    let top = a00 * (1.0 - fx) + a10 * fx;
-    let bot = a01 * (1.0 - fx) + a11 * fx;
-    top * (1.0 - fy) + bot * fy
 }
 
 /// Reads one byte of every 64 (a cache line) of the pixel rows of the quads `region` covers,

@@ -2,6 +2,8 @@
 //! ([`AlphaMemo`]), and the blocks of quads a ray crosses without a sample's value
 //! ([`leaves_block`], [`SURE_INSIDE`]).
 
+use super::colour::OFF_AXIS;
+
 /// The quads' colour positions around a blob, each computed at most once per fit.
 #[derive(Debug, Clone)]
 pub(super) struct AlphaMemo {
@@ -98,6 +100,29 @@ pub(super) fn leaves_block(block: [f64; 4], o: [f64; 2], d: [f64; 2]) -> f64 {
 /// A quad's colour position at which it is surely the ball's: above 0.5 by more than a
 /// bilinear sample's rounding.
 pub(super) const SURE_INSIDE: f32 = 0.5 + 1e-3;
+
+/// A block of quads a ray's samples fall in: see `BallDetector::sure_block`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Block {
+    /// `[x0, y0, x1, y1)`, quads.
+    pub(super) quads: [f64; 4],
+    /// The four quads' colour positions, `[x0 y0, x1 y0, x0 y1, x1 y1]`.
+    pub(super) corners: [f32; 4],
+    /// All four surely the ball's colour.
+    pub(super) sure: bool,
+}
+
+/// The bilinear value at `(fx, fy)` (each in `[0, 1)`) between the colour positions `[a00,
+/// a10, a01, a11]` of four neighbouring quads; [`OFF_AXIS`] when any of them is.
+#[inline(always)]
+pub(super) fn bilinear([a00, a10, a01, a11]: [f32; 4], fx: f32, fy: f32) -> f32 {
+    if [a00, a10, a01, a11].contains(&OFF_AXIS) {
+        return OFF_AXIS;
+    }
+    let top = a00 * (1.0 - fx) + a10 * fx;
+    let bot = a01 * (1.0 - fx) + a11 * fx;
+    top * (1.0 - fy) + bot * fy
+}
 
 #[cfg(test)]
 mod tests {
