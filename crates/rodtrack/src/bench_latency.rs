@@ -178,9 +178,12 @@ pub fn run(args: Args) -> Result<()> {
         "default",
     )?;
     let cals = (0..ncam)
-        .map(|c| match args.ball {
-            true => Ok(sim.calibrated_camera_with_ball(c, args.seed)?),
-            false => calibrate_sim_camera(&mut sim, c, args.seed),
+        .map(|c| {
+            if args.ball {
+                Ok(sim.calibrated_camera_with_ball(c, args.seed)?)
+            } else {
+                calibrate_sim_camera(&mut sim, c, args.seed)
+            }
         })
         .collect::<Result<Vec<_>>>()?;
     drop(sim);

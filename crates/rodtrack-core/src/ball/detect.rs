@@ -217,6 +217,7 @@ impl BallDetector {
     /// n)`): the field's rows cut in `n` bands, each widened by a ball's extent and a step on
     /// both sides so that a ball on a border lies whole in a band, its rows on the whole
     /// scan's grid (a ball a band holds whole is found there as the whole scan finds it).
+    /// `None`, one band, or `k >= n`: the whole field.
     pub fn detect_in_band(
         &mut self,
         view: &FrameView,
