@@ -633,3 +633,57 @@ fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
     eprintln!("{compared} detections, {near_border} found by two bands");
     assert!(compared > 100, "too few detections: {compared}");
 }
+
+/// A hard shot smeared over a long exposure (2 ms: 16-30 mm at 8-15 m/s) is found by the
+/// detector on its own (the coarse scan, no prediction) at its centre at mid-exposure.
+/// The target (found on 99 % of these frames) is not met yet: 67 of 73, error RMS 1.71 mm,
+/// max 4.32 mm (docs/ball.md, "A long exposure"); run by hand.
+#[test]
+#[ignore = "target not met yet: 67 of 73 found at a 2 ms exposure (docs/ball.md)"]
+fn a_ball_smeared_over_a_long_exposure_is_found_at_its_mid_exposure_centre() {
+    use rodtrack_core::ball::BallDetector;
+    use rodtrack_core::FrameView;
+    let (seed, frames) = (3, 2400);
+    let mut sim = build_simulation("shots", Some(frames), seed, false, "exposure:2000").unwrap();
+    let (mut seen, mut found, mut errs) = (0usize, 0usize, Vec::new());
+    for cam in 0..sim.cameras().len() {
+        let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
+        let mut det = BallDetector::new(&cal).unwrap().unwrap();
+        let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+        for f in 0..frames {
+            let Some(t) = sim.ball_truth(f) else { continue };
+            if t.vx_mm_s.hypot(t.vy_mm_s) < 8000.0 || t.visible[cam] < 0.9 {
+                continue;
+            }
+            let meta = sim.render(f, cam, &mut buf).unwrap();
+            let view =
+                FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
+            seen += 1;
+            let d = det.detect(&view, None);
+            if let Some(d) = d {
+                found += 1;
+                errs.push((d.x_mm - t.x_mm).hypot(d.y_mm - t.y_mm));
+            }
+            eprintln!(
+                "camera {cam} frame {f}: speed {:.0} mm/s, {:?}",
+                t.vx_mm_s.hypot(t.vy_mm_s),
+                d.map(|d| (
+                    d.x_mm - t.x_mm,
+                    d.y_mm - t.y_mm,
+                    d.edge_points,
+                    d.residual_mm
+                ))
+            );
+        }
+    }
+    errs.sort_by(f64::total_cmp);
+    let max = errs.last().copied().unwrap_or(f64::NAN);
+    let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len().max(1) as f64).sqrt();
+    eprintln!("{found} of {seen} found; error rms {rms:.2} mm, max {max:.2} mm");
+    assert!(seen >= 20, "too few fast frames: {seen}");
+    assert!(
+        found as f64 >= 0.99 * seen as f64,
+        "{found} of {seen} found"
+    );
+    assert!(rms <= 3.0, "error rms {rms:.2} mm");
+}

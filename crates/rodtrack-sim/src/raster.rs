@@ -23,6 +23,9 @@ pub(crate) struct Quad {
     pub zmin: f32,
     /// A disc instead of a quad: centre `v[0]`, radius `v[1][0]` (px).
     pub disc: bool,
+    /// A disc's sphere: its displacement over the exposure, world mm, centred on `c` (fast
+    /// mode's motion blur; zero for faces).
+    pub motion: V3,
 }
 
 /// Appends the camera-facing faces of a box. `to_world` maps box-local points to world;
@@ -90,6 +93,7 @@ pub(crate) fn box_faces(
                     .map(|&i| corners[i][2])
                     .fold(f32::INFINITY, f32::min),
                 disc: false,
+                motion: [0.0; 3],
             });
         }
     }
@@ -164,6 +168,7 @@ mod tests {
             c: [0.0; 3],
             zmin: 0.0,
             disc: false,
+            motion: [0.0; 3],
         };
         let mut spans = Vec::new();
         scan(&q, 100, 100, &mut spans);

@@ -22,6 +22,10 @@ pub struct Args {
     /// Seed.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// The table as built: `default`, a named variation, `asbuilt:SEED` or `exposure:US`, or
+    /// several joined by `+` (as `simulate --setup`).
+    #[arg(long, default_value = "default")]
+    pub setup: String,
     /// Also serve the web console at this address (e.g. 127.0.0.1:8620) while the demo runs,
     /// and keep serving it afterwards until Ctrl-C.
     #[arg(long)]
@@ -40,7 +44,7 @@ pub fn run(args: Args) -> Result<()> {
         Some(args.frames),
         args.seed,
         false,
-        "default",
+        &args.setup,
     )?;
     let ncam = sim.cameras().len();
     // 1. Calibrate every camera from the inputs an operator would give (clicked points with

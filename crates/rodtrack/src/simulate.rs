@@ -37,8 +37,10 @@ pub struct Args {
     /// at the start, middle and end of its travel) and list them in the calibration inputs.
     #[arg(long)]
     pub known_poses: bool,
-    /// The table as built: `default`, a named variation, or `asbuilt:SEED` (cameras tilted,
-    /// shifted and with other lenses, rods off their places, print seams; drawn from SEED).
+    /// The table as built: `default`, a named variation, `asbuilt:SEED` (cameras tilted,
+    /// shifted and with other lenses, rods off their places, print seams; drawn from SEED),
+    /// `exposure:US` (every camera's exposure, its gain lowered to keep the levels), or several
+    /// joined by `+` (`asbuilt:3+exposure:2000`).
     #[arg(long, default_value = "default")]
     pub setup: String,
     /// Render the markers with N x N point rays per pixel instead of each pixel's whole area

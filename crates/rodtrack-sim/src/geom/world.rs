@@ -44,6 +44,9 @@ pub(crate) struct WorldGeom {
     pub rods: Vec<RodGeom>,
     pub hand_boxes: Vec<WBox>,
     pub ball: Option<(V3, f32)>,
+    /// The ball's displacement over the exposure, mm, its centre `ball` at mid-exposure: fast
+    /// mode's motion blur (zero where each geometry is one instant, as in quality mode).
+    pub ball_move: V3,
 }
 
 /// Pose of every rod (position, unwrapped angle, rates) at one instant.
@@ -216,5 +219,6 @@ impl WorldGeom {
         self.ball = state
             .ball
             .map(|b| (b.map(|v| v as f32), (0.5 * scene.ball_diameter_mm) as f32));
+        self.ball_move = [0.0; 3];
     }
 }

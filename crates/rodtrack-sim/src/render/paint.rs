@@ -57,12 +57,26 @@ impl CameraRenderer {
                     c[2] - self.origin[2],
                 ];
                 let dist = (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt() - r;
+                // The path's half length in the image, px (the blur's ends).
+                let m = g.ball_move;
+                let half_px = [-0.5f64, 0.5]
+                    .iter()
+                    .filter_map(|&s| {
+                        let e = [
+                            cd[0] + s * m[0] as f64,
+                            cd[1] + s * m[1] as f64,
+                            cd[2] + s * m[2] as f64,
+                        ];
+                        cam.project(e).map(|(a, b)| (a - u).hypot(b - v))
+                    })
+                    .fold(0.0, f64::max);
                 // A bounding disc around the projected centre: the silhouette itself (the
-                // sphere's tangent cone, with perspective and distortion) is found per pixel.
+                // sphere's tangent cone, with perspective and distortion, swept along its
+                // path) is found per pixel.
                 quads.push(Quad {
                     v: [
                         [u as f32, v as f32],
-                        [1.3 * (u2 - u).abs() as f32 + 3.0, 0.0],
+                        [(1.3 * (u2 - u).abs() + 1.1 * half_px) as f32 + 3.0, 0.0],
                         [r, 0.0],
                         [0.0; 2],
                     ],
@@ -72,6 +86,7 @@ impl CameraRenderer {
                     c,
                     zmin: c[2] - r,
                     disc: true,
+                    motion: m,
                 });
             }
         }
@@ -116,21 +131,26 @@ impl CameraRenderer {
                     // The ball: the pixel's ray against the sphere (its true silhouette).
                     let mut t_ball = 0.0f32;
                     let mut nz_ball = 0.0f32;
+                    let mut cover = 1.0f32;
                     if q.disc {
                         let (d, _, _) = self.grid.sample(x as f32, y as f32);
-                        let w = [
-                            q.c[0] - self.origin[0],
-                            q.c[1] - self.origin[1],
-                            q.c[2] - self.origin[2],
-                        ];
-                        let b = d[0] * w[0] + d[1] * w[1] + d[2] * w[2];
+                        let w0 = sub(q.c, self.origin);
                         let r = q.v[2][0];
-                        let disc = b * b - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2] - r * r);
-                        if disc < 0.0 {
+                        let Some((frac, s_mid)) = sweep_cover(w0, q.motion, d, r) else {
                             continue;
-                        }
+                        };
+                        // The sphere where the ray meets it in the middle of that time.
+                        let c = [
+                            q.c[0] + s_mid * q.motion[0],
+                            q.c[1] + s_mid * q.motion[1],
+                            q.c[2] + s_mid * q.motion[2],
+                        ];
+                        let w = sub(c, self.origin);
+                        let b = dot(d, w);
+                        let disc = (b * b - (dot(w, w) - r * r)).max(0.0);
                         t_ball = b - disc.sqrt();
-                        nz_ball = (self.origin[2] + t_ball * d[2] - q.c[2]) / r;
+                        nz_ball = (self.origin[2] + t_ball * d[2] - c[2]) / r;
+                        cover = frac;
                     }
                     let mut rm = self.rod_mask[p];
                     if rm != 0 {
@@ -173,10 +193,25 @@ impl CameraRenderer {
                     } else {
                         val
                     };
+                    // A moving ball covers the pixel for part of the exposure only: over what
+                    // is behind it (already in the image) for the rest.
+                    let mix = |old: f32, new: f32| {
+                        if cover >= 1.0 {
+                            new
+                        } else {
+                            cover * new + (1.0 - cover) * old
+                        }
+                    };
                     match (ch, bayer) {
-                        (3, _) => rad[p * 3..p * 3 + 3].copy_from_slice(&rgb),
-                        (_, Some(bp)) => rad[p] = rgb[bp[(y & 1) * 2 + (x & 1)] as usize],
-                        _ => rad[p] = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2],
+                        (3, _) => {
+                            for c in 0..3 {
+                                rad[p * 3 + c] = mix(rad[p * 3 + c], rgb[c]);
+                            }
+                        }
+                        (_, Some(bp)) => {
+                            rad[p] = mix(rad[p], rgb[bp[(y & 1) * 2 + (x & 1)] as usize])
+                        }
+                        _ => rad[p] = mix(rad[p], 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2]),
                     }
                 }
             }
@@ -187,5 +222,73 @@ impl CameraRenderer {
             self.tile_dirty[t as usize] = false;
         }
         self.spans = spans;
+    }
+}
+
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The part of the exposure during which a pixel's ray (unit direction `d` from the camera)
+/// meets a sphere of radius `r` whose centre, `w0` from the camera at mid-exposure, moves by
+/// `motion` over the exposure: `(fraction, s)` with `s` the middle of that time in `[-1/2,
+/// 1/2]` of the exposure; `None` if it never does. A ball standing still covers the whole
+/// exposure or none of it.
+pub(crate) fn sweep_cover(w0: V3, motion: V3, d: V3, r: f32) -> Option<(f32, f32)> {
+    // The centre's offset from the ray, across it: `a + s b`.
+    let perp = |v: V3| {
+        let k = dot(v, d);
+        [v[0] - k * d[0], v[1] - k * d[1], v[2] - k * d[2]]
+    };
+    let (a, b) = (perp(w0), perp(motion));
+    let (qa, qb, qc) = (dot(b, b), 2.0 * dot(a, b), dot(a, a) - r * r);
+    if qa <= 1e-12 * r * r {
+        return (qc < 0.0).then_some((1.0, 0.0));
+    }
+    let disc = qb * qb - 4.0 * qa * qc;
+    if disc <= 0.0 {
+        return None;
+    }
+    let root = disc.sqrt();
+    let s0 = ((-qb - root) / (2.0 * qa)).max(-0.5);
+    let s1 = ((-qb + root) / (2.0 * qa)).min(0.5);
+    (s1 > s0).then_some((s1 - s0, 0.5 * (s0 + s1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sweep_cover;
+
+    #[test]
+    fn a_swept_sphere_covers_a_ray_for_the_time_it_crosses_it() {
+        let d = [0.0, 0.0, 1.0];
+        // Still: all or nothing.
+        assert_eq!(
+            sweep_cover([3.0, 0.0, 100.0], [0.0; 3], d, 5.0),
+            Some((1.0, 0.0))
+        );
+        assert_eq!(sweep_cover([6.0, 0.0, 100.0], [0.0; 3], d, 5.0), None);
+        // Moving 40 mm along x through the ray: the ray is inside for |x| < 5, 10 of 40 mm.
+        let (f, s) = sweep_cover([0.0, 0.0, 100.0], [40.0, 0.0, 0.0], d, 5.0).unwrap();
+        assert!((f - 0.25).abs() < 1e-6 && s.abs() < 1e-6);
+        // The same path, the ray at x = 12 mm from the mid-exposure centre: [7, 17] of
+        // [-20, 20], the middle at +12 mm (s = 0.3).
+        let (f, s) = sweep_cover([-12.0, 0.0, 100.0], [40.0, 0.0, 0.0], d, 5.0).unwrap();
+        assert!((f - 0.25).abs() < 1e-5 && (s - 0.3).abs() < 1e-5, "{f} {s}");
+        // Near the path's end, cut by the exposure: [15, 20] of the path, 5 of 40 mm.
+        let (f, s) = sweep_cover([-20.0, 0.0, 100.0], [40.0, 0.0, 0.0], d, 5.0).unwrap();
+        assert!(
+            (f - 0.125).abs() < 1e-5 && (s - 0.4375).abs() < 1e-5,
+            "{f} {s}"
+        );
+        // Beside the path.
+        assert_eq!(
+            sweep_cover([0.0, 6.0, 100.0], [40.0, 0.0, 0.0], d, 5.0),
+            None
+        );
     }
 }
