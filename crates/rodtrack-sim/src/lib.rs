@@ -45,7 +45,8 @@
 //! Per frame, fast mode: each marker's pixels are shaded with the print box-filtered
 //! analytically over the pixel footprint widened by the motion during the exposure; figures,
 //! hands and the ball are rasterised (camera-facing box faces, far to near) with exact
-//! occlusion tests against the rods and walls; light, glare, shot and read noise and 8-bit
+//! occlusion tests against the rods and walls, the ball smeared along its path (each pixel
+//! the part of the exposure its ray meets the moving sphere); light, glare, shot and read noise and 8-bit
 //! quantisation finish the frame (rows of a noisy still copy where nothing changed). Quality
 //! mode traces 4 x 4 sub-samples per marker pixel, each at its own time in the exposure, and
 //! 2 x 2 for moving objects. Speed: `cargo bench -p rodtrack-sim --bench render -- fast
