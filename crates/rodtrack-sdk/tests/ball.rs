@@ -634,17 +634,14 @@ fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
     assert!(compared > 100, "too few detections: {compared}");
 }
 
-/// A hard shot smeared over a long exposure (2 ms: 16-30 mm at 8-15 m/s) is found by the
-/// detector on its own (the coarse scan, no prediction) at its centre at mid-exposure.
-/// The target (found on 99 % of these frames) is not met yet: 67 of 73, error RMS 1.71 mm,
-/// max 4.32 mm (docs/ball.md, "A long exposure"); run by hand.
-#[test]
-#[ignore = "target not met yet: 67 of 73 found at a 2 ms exposure (docs/ball.md)"]
-fn a_ball_smeared_over_a_long_exposure_is_found_at_its_mid_exposure_centre() {
+/// Each camera's detector on its own (the coarse scan, no prediction) over the frames of
+/// scenario `shots` (seed 3, the first 2400 frames) where the ball flies at 8 m/s or more and
+/// the camera sees at least 90 % of it, on `setup`: (frames, found, errors in mm).
+fn fast_shots_detected(setup: &str) -> (usize, usize, Vec<f64>) {
     use rodtrack_core::ball::BallDetector;
     use rodtrack_core::FrameView;
     let (seed, frames) = (3, 2400);
-    let mut sim = build_simulation("shots", Some(frames), seed, false, "exposure:2000").unwrap();
+    let mut sim = build_simulation("shots", Some(frames), seed, false, setup).unwrap();
     let (mut seen, mut found, mut errs) = (0usize, 0usize, Vec::new());
     for cam in 0..sim.cameras().len() {
         let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
@@ -659,31 +656,43 @@ fn a_ball_smeared_over_a_long_exposure_is_found_at_its_mid_exposure_centre() {
             let view =
                 FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format).unwrap();
             seen += 1;
-            let d = det.detect(&view, None);
-            if let Some(d) = d {
+            if let Some(d) = det.detect(&view, None) {
                 found += 1;
                 errs.push((d.x_mm - t.x_mm).hypot(d.y_mm - t.y_mm));
             }
-            eprintln!(
-                "camera {cam} frame {f}: speed {:.0} mm/s, {:?}",
-                t.vx_mm_s.hypot(t.vy_mm_s),
-                d.map(|d| (
-                    d.x_mm - t.x_mm,
-                    d.y_mm - t.y_mm,
-                    d.edge_points,
-                    d.residual_mm
-                ))
-            );
         }
     }
     errs.sort_by(f64::total_cmp);
-    let max = errs.last().copied().unwrap_or(f64::NAN);
     let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len().max(1) as f64).sqrt();
-    eprintln!("{found} of {seen} found; error rms {rms:.2} mm, max {max:.2} mm");
-    assert!(seen >= 20, "too few fast frames: {seen}");
+    eprintln!(
+        "{setup}: {found} of {seen} found; error rms {rms:.2} mm, max {:.2} mm",
+        errs.last().copied().unwrap_or(f64::NAN)
+    );
+    (seen, found, errs)
+}
+
+/// A hard shot smeared over a long exposure (2 ms: 16-30 mm at 8-15 m/s) is placed at its
+/// centre at mid-exposure as well as a ball rolling at 2 m/s must be (max 3 mm): the smear's
+/// faded ends make it a smeared ball, whose centre its symmetry gives. The sphere's fit alone
+/// (before) placed it up to 4.32 mm off (error RMS 1.71 mm).
+#[test]
+fn a_ball_smeared_over_a_long_exposure_is_placed_at_its_mid_exposure_centre() {
+    let (seen, found, errs) = fast_shots_detected("exposure:2000");
+    assert!(seen >= 50 && found >= 50, "{found} of {seen}");
+    let max = errs.last().copied().unwrap_or(f64::NAN);
+    assert!(max <= 3.0, "error max {max:.2} mm");
+}
+
+/// The detection target on the same frames: found on 99 % of them. Not met yet (67 of
+/// 73 at a 2 ms exposure, 69 of 72 at 0.5 ms: docs/ball.md, "A long exposure"); run by hand.
+#[test]
+#[ignore = "target not met yet: 67 of 73 found at a 2 ms exposure (docs/ball.md)"]
+fn a_ball_smeared_over_a_long_exposure_is_found_on_99_percent_of_the_frames() {
+    let (seen, found, _) = fast_shots_detected(
+        &std::env::var("RODTRACK_TEST_SETUP").unwrap_or("exposure:2000".into()),
+    );
     assert!(
         found as f64 >= 0.99 * seen as f64,
         "{found} of {seen} found"
     );
-    assert!(rms <= 3.0, "error rms {rms:.2} mm");
 }

@@ -2,12 +2,14 @@
 //! of the ball's expected size, its silhouette's edge points, and the sphere's centre fitted
 //! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
 
+mod smear;
+
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::memo::{bilinear, leaves_block, AlphaMemo, Block, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
     MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
-    WINDOW_RADII,
+    SMEAR_MIN_ENDS, WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -65,7 +67,7 @@ pub struct BallDetector {
 
 /// A blob of colour candidates.
 #[derive(Debug, Clone, Copy)]
-struct Blob {
+pub(crate) struct Blob {
     cx_q: f64,
     cy_q: f64,
     rq: f64,
@@ -387,7 +389,7 @@ impl BallDetector {
     }
 
     /// The colour's position between field (0) and ball (1), bilinear between quad centres.
-    fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
+    pub(crate) fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
         let (ix, iy) = self.base_quad(x_q, y_q)?;
         let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
         let [a00, a10, a01, a11] = match self.alpha.block(ix, iy) {
@@ -497,7 +499,7 @@ impl BallDetector {
         }
     }
 
-    fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
+    pub(crate) fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
         let (x, y) = (x_q.round(), y_q.round());
         if x < 0.0 || y < 0.0 || x as usize >= self.qw || y as usize >= self.qh {
             return false;
@@ -527,6 +529,8 @@ impl BallDetector {
         }
         self.rays.clear();
         self.octant.clear();
+        // Edges whose field lies beyond a fade (a smeared ball's ends).
+        let mut faded = 0usize;
         // Samples in a block of quads all of the ball's colour are inside whatever their
         // place in it: no bilinear value is computed for them (the plain path computes each).
         let blocks = !self.plain && self.alpha.w > 0;
@@ -621,6 +625,9 @@ impl BallDetector {
                 self.is_field_at(view, blob.cx_q + (te + d) * c, blob.cy_q + (te + d) * s)
             });
             if !ok {
+                if self.faded_end(view, [blob.cx_q, blob.cy_q], [c, s], te, rq) {
+                    faded += 1;
+                }
                 continue;
             }
             let (u, v) = (
@@ -635,6 +642,13 @@ impl BallDetector {
             Some(_) => MIN_EDGE_POINTS_NEAR_PREDICTION,
             None => MIN_EDGE_POINTS,
         };
+        // A smeared ball placed by its symmetry; where that fails (an occluder or the
+        // image's border beside it), the sphere's fit as for a ball standing still.
+        if faded >= SMEAR_MIN_ENDS {
+            if let Some(d) = self.fit_smeared(view, blob, self.rays.len(), faded, fewest) {
+                return Some(d);
+            }
+        }
         if self.rays.len() < fewest {
             return None;
         }

@@ -10,6 +10,21 @@ pub const AREA_RATIO_MIN: f64 = 0.25;
 pub const AREA_RATIO_MAX: f64 = 1.5;
 /// A blob's extent (x or y) over the ball's expected diameter: a longer blob is not a ball.
 pub const EXTENT_RATIO_MAX: f64 = 1.25;
+/// Along a smeared ball's faded end, the most a sample's colour position (field 0, ball 1)
+/// may rise over the previous one's a quad further out: noise on a fading mixture, not the
+/// ball's colour again (a quarter of the way from the field's colour to the ball's).
+pub const BLUR_RISE_MAX: f32 = 0.25;
+/// Rays of a blob ending in a fade (see [`BLUR_RISE_MAX`]) that make it a smeared ball, its
+/// centre then placed by symmetry: the path's two ends.
+pub const SMEAR_MIN_ENDS: usize = 2;
+/// Directions over half a turn in which a smeared ball's image is compared with its mirror.
+pub const SMEAR_ANGLES: usize = 16;
+/// The largest RMS difference of colour positions (field 0, ball 1) between a smeared ball's
+/// image and its mirror about its centre: a tenth of the way between the two colours (as
+/// [`RESIDUAL_RATIO_MAX`] bounds a sphere's fit to a tenth of its radius). A ball whose path
+/// bends within the exposure (a bounce, a stop in the goal) is no mirror of itself; the
+/// sphere's fit then takes it.
+pub const SMEAR_ASYMMETRY_MAX: f64 = 0.1;
 /// Edge points a fit needs.
 pub const MIN_EDGE_POINTS: usize = 8;
 /// Edge points a fit needs when the tracker predicts the ball there: the prediction's two
