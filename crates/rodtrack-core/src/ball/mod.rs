@@ -5,7 +5,8 @@
 //! - [`detect`]: colour candidates on a grid of quads (every `coarse_step` quads over the
 //!   field when lost, a window around the prediction when tracking), the compact blob of the
 //!   ball's expected size, edge points on rays from its centre (only where the field's colour
-//!   lies beyond), and the sphere's centre at `z = radius` fitted to the edge points' rays.
+//!   lies beyond), and the sphere's centre at `z = radius` fitted to the edge points' rays
+//!   (a ball smeared over the exposure: the centre of its image's symmetry).
 //! - [`track`]: the constant-velocity filter, statuses `ok`, `predicted`, `lost`.
 //! - [`events`]: goals (with the score), shots, ball out, ball stopped, from one ball row per
 //!   frame set.
