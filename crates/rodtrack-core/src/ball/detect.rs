@@ -9,7 +9,7 @@ use super::memo::{bilinear, leaves_block, AlphaMemo, Block, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
     MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
-    SMEAR_MIN_ENDS, WINDOW_RADII,
+    SMEAR_FADED_FRACTION, WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -530,7 +530,7 @@ impl BallDetector {
         self.rays.clear();
         self.octant.clear();
         // Edges whose field lies beyond a fade (a smeared ball's ends).
-        let mut faded = 0usize;
+        let (mut faded, mut faded_octants) = (0usize, 0u8);
         // Samples in a block of quads all of the ball's colour are inside whatever their
         // place in it: no bilinear value is computed for them (the plain path computes each).
         let blocks = !self.plain && self.alpha.w > 0;
@@ -627,6 +627,7 @@ impl BallDetector {
             if !ok {
                 if self.faded_end(view, [blob.cx_q, blob.cy_q], [c, s], te, rq) {
                     faded += 1;
+                    faded_octants |= 1 << (i * 8 / N_RAYS);
                 }
                 continue;
             }
@@ -644,7 +645,8 @@ impl BallDetector {
         };
         // A smeared ball placed by its symmetry; where that fails (an occluder or the
         // image's border beside it), the sphere's fit as for a ball standing still.
-        if faded >= SMEAR_MIN_ENDS {
+        let edges = (self.rays.len() + faded) as f64;
+        if faded as f64 >= SMEAR_FADED_FRACTION * edges && smear::opposite_ends(faded_octants) {
             if let Some(d) = self.fit_smeared(view, blob, self.rays.len(), faded, fewest) {
                 return Some(d);
             }

@@ -14,9 +14,12 @@ pub const EXTENT_RATIO_MAX: f64 = 1.25;
 /// may rise over the previous one's a quad further out: noise on a fading mixture, not the
 /// ball's colour again (a quarter of the way from the field's colour to the ball's).
 pub const BLUR_RISE_MAX: f32 = 0.25;
-/// Rays of a blob ending in a fade (see [`BLUR_RISE_MAX`]) that make it a smeared ball, its
-/// centre then placed by symmetry: the path's two ends.
-pub const SMEAR_MIN_ENDS: usize = 2;
+/// The part of a blob's edges ending in a fade (see [`BLUR_RISE_MAX`]), on opposite sides,
+/// that makes it a smeared ball, its centre then placed by symmetry: a smear long enough to
+/// move a sphere's fit (its ends fading over more than a quad) fades the rays within 45
+/// degrees of the path, a quarter of the outline; a ball standing still beside a shadow fades
+/// a ray or two.
+pub const SMEAR_FADED_FRACTION: f64 = 0.25;
 /// Directions over half a turn in which a smeared ball's image is compared with its mirror.
 pub const SMEAR_ANGLES: usize = 16;
 /// The largest RMS difference of colour positions (field 0, ball 1) between a smeared ball's

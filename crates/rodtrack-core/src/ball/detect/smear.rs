@@ -109,6 +109,16 @@ impl BallDetector {
     }
 }
 
+/// Faded ends (bit `k`: octant `k` of the rays) on opposite sides of the blob, as a path's two
+/// ends are: an octant and the opposite one or either beside it. A ball standing still beside
+/// a shadow or a fading stain fades on one side only.
+pub(super) fn opposite_ends(octants: u8) -> bool {
+    (0..8).any(|k| {
+        let opposite = [(k + 3) % 8, (k + 4) % 8, (k + 5) % 8];
+        octants & (1 << k) != 0 && opposite.iter().any(|&o| octants & (1 << o) != 0)
+    })
+}
+
 /// Where the centre of a sphere's image lies beside the projection of its centre, px: a
 /// sphere seen off the optical axis images as an oval whose middle is further out than its
 /// centre's image (and the lens bends it more on one side). The middle of its outline's
@@ -232,6 +242,17 @@ impl BallDetector {
 mod tests {
     use super::outline_offset_px;
     use crate::{Camera, CameraIntrinsics, Pose};
+
+    #[test]
+    fn a_path_has_two_opposite_ends() {
+        use super::opposite_ends;
+        assert!(opposite_ends(0b0001_0001));
+        assert!(opposite_ends(0b0000_1001));
+        assert!(opposite_ends(0b1000_0100));
+        assert!(!opposite_ends(0b0000_0011));
+        assert!(!opposite_ends(0b0000_0001));
+        assert!(!opposite_ends(0b1000_0001));
+    }
 
     #[test]
     fn a_sphere_off_the_axis_images_further_out_than_its_centre() {
