@@ -30,7 +30,10 @@ pub struct Detection {
     pub edge_points: usize,
     /// Fraction of the silhouette's rays that gave an edge point (0..1).
     pub seen_fraction: f64,
-    /// RMS distance of the edge rays from the sphere, mm.
+    /// RMS distance of the edge rays from the sphere, mm; for a ball smeared by its motion
+    /// (placed by its image's symmetry), the RMS difference of the colour positions on
+    /// opposite sides (0 field, 1 ball) times the ball's radius. With `edge_points` it sets
+    /// the measurement's weight in the tracker.
     pub residual_mm: f64,
 }
 
@@ -67,7 +70,7 @@ pub struct BallDetector {
 
 /// A blob of colour candidates.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Blob {
+struct Blob {
     cx_q: f64,
     cy_q: f64,
     rq: f64,
@@ -389,7 +392,7 @@ impl BallDetector {
     }
 
     /// The colour's position between field (0) and ball (1), bilinear between quad centres.
-    pub(crate) fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
+    fn alpha_at(&mut self, view: &FrameView, x_q: f64, y_q: f64) -> Option<f32> {
         let (ix, iy) = self.base_quad(x_q, y_q)?;
         let (fx, fy) = ((x_q - ix as f64) as f32, (y_q - iy as f64) as f32);
         let [a00, a10, a01, a11] = match self.alpha.block(ix, iy) {
@@ -499,7 +502,7 @@ impl BallDetector {
         }
     }
 
-    pub(crate) fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
+    fn is_field_at(&self, view: &FrameView, x_q: f64, y_q: f64) -> bool {
         let (x, y) = (x_q.round(), y_q.round());
         if x < 0.0 || y < 0.0 || x as usize >= self.qw || y as usize >= self.qh {
             return false;
@@ -647,19 +650,15 @@ impl BallDetector {
         // image's border beside it), the sphere's fit as for a ball standing still.
         let edges = (self.rays.len() + faded) as f64;
         if faded as f64 >= SMEAR_FADED_FRACTION * edges && smear::opposite_ends(faded_octants) {
-            if let Some(d) = self.fit_smeared(view, blob, self.rays.len(), faded, fewest) {
+            if let Some(d) = self.fit_smeared(view, blob, self.rays.len() + faded, fewest) {
                 return Some(d);
             }
         }
         if self.rays.len() < fewest {
             return None;
         }
-        let (o, d0) = self.cam.ray(2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
-        if d0[2].abs() < 1e-9 {
-            return None;
-        }
-        let s0 = (self.radius_mm - o[2]) / d0[2];
-        let mut c = [o[0] + s0 * d0[0], o[1] + s0 * d0[1]];
+        let (o, c0) = self.on_ball_plane(2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5)?;
+        let mut c = [c0[0], c0[1]];
         let mut used = first_bits(self.rays.len());
         for round in 0..2 {
             c = self.gauss_newton(o, c, used)?;
@@ -716,6 +715,17 @@ impl BallDetector {
             seen_fraction: n as f64 / N_RAYS as f64,
             residual_mm: rms,
         })
+    }
+
+    /// The camera's centre and the point where pixel `(u, v)`'s ray meets the plane of the
+    /// ball's centre (`z` = its radius), table frame, mm; `None` for a ray along the plane.
+    fn on_ball_plane(&self, u: f64, v: f64) -> Option<([f64; 3], [f64; 3])> {
+        let (o, d) = self.cam.ray(u, v);
+        if d[2].abs() < 1e-9 {
+            return None;
+        }
+        let s = (self.radius_mm - o[2]) / d[2];
+        Some((o, [o[0] + s * d[0], o[1] + s * d[1], self.radius_mm]))
     }
 
     /// Signed distance of every edge ray from the sphere at `c` (z = radius), into `resid`.

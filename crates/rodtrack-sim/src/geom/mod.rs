@@ -9,7 +9,7 @@ mod texture;
 mod world;
 
 pub use ray::V3;
-pub(crate) use ray::{rod_hit, rod_sample, RodSample};
+pub(crate) use ray::{dot, rod_hit, rod_sample, RodSample};
 pub(crate) use shader::{Obj, Shader};
 pub(crate) use table::Table;
 pub(crate) use world::WorldGeom;

@@ -4,7 +4,7 @@
 pub type V3 = [f32; 3];
 
 #[inline(always)]
-pub(super) fn dot(a: V3, b: V3) -> f32 {
+pub(crate) fn dot(a: V3, b: V3) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 

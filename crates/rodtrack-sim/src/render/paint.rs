@@ -2,7 +2,7 @@
 //! occlusion tests against the rods and walls.
 
 use super::renderer::{CameraRenderer, TILE};
-use crate::geom::{rod_hit, Shader, WorldGeom, V3};
+use crate::geom::{dot, rod_hit, Shader, WorldGeom, V3};
 use crate::raster::{box_faces, scan, Quad};
 use crate::scene::Team;
 
@@ -227,10 +227,6 @@ impl CameraRenderer {
 
 fn sub(a: V3, b: V3) -> V3 {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: V3, b: V3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The part of the exposure during which a pixel's ray (unit direction `d` from the camera)

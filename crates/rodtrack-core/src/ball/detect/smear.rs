@@ -50,6 +50,11 @@ impl BallDetector {
         start: [f64; 2],
         rq: f64,
     ) -> Option<Symmetric> {
+        // A blob's expected radius is finite and positive (its area was judged by it); the
+        // rings' count rests on it.
+        if !(rq.is_finite() && rq > 0.0) {
+            return None;
+        }
         let reach = 2.0 * rq + 1.0;
         let rings = reach.ceil().max(1.0) as usize;
         let mut c = start;
@@ -192,34 +197,25 @@ impl BallDetector {
         false
     }
 
-    /// A ball smeared by its motion (`faded` of the blob's rays end in a fade, see
-    /// [`BallDetector::faded_end`]; `sharp` edge points): its centre at mid-exposure by
-    /// symmetry, on the ball's plane. Needs as many edges as a fit, the fade included.
+    /// A ball smeared by its motion (its blob's rays found `edges` edges, sharp or ending in a
+    /// fade, see [`BallDetector::faded_end`]): its centre at mid-exposure by symmetry, on the
+    /// ball's plane. Needs as many edges as a fit.
     pub(super) fn fit_smeared(
         &mut self,
         view: &FrameView,
         blob: Blob,
-        sharp: usize,
-        faded: usize,
+        edges: usize,
         fewest: usize,
     ) -> Option<Detection> {
-        let edges = sharp + faded;
         if edges < fewest {
             return None;
         }
         let sym = self.symmetric_centre(view, [blob.cx_q, blob.cy_q], blob.rq)?;
         let (u, v) = (2.0 * sym.centre_q[0] + 0.5, 2.0 * sym.centre_q[1] + 0.5);
-        let on_plane = |cam: &Camera, u: f64, v: f64, z: f64| {
-            let (o, d) = cam.ray(u, v);
-            (d[2].abs() > 1e-9).then(|| {
-                let s = (z - o[2]) / d[2];
-                [o[0] + s * d[0], o[1] + s * d[1], z]
-            })
-        };
         let r = self.radius_mm;
-        let p0 = on_plane(&self.cam, u, v, r)?;
+        let (_, p0) = self.on_ball_plane(u, v)?;
         let off = outline_offset_px(&self.cam, p0, r)?;
-        let p = on_plane(&self.cam, u - off[0], v - off[1], r)?;
+        let (_, p) = self.on_ball_plane(u - off[0], v - off[1])?;
         let (pu, pv) = self.cam.project(p)?;
         // The centre must lie within the blob it came from.
         let (bu, bv) = (2.0 * blob.cx_q + 0.5, 2.0 * blob.cy_q + 0.5);
