@@ -3,7 +3,7 @@
 //! table frame (SPEC section 9: origin at the field's centre, `x` along the table towards the
 //! goal at world `x = field_length_mm`, `y` across, `z` up).
 
-use crate::geom::{Obj, WorldGeom, WorldState, V3};
+use crate::geom::{Obj, Table, WorldGeom, WorldState, V3};
 use crate::sim::{frame_time, Ctx, Simulation};
 use crate::SimError;
 use rodtrack_core::linalg_small::{cross, normalise3};
@@ -101,6 +101,9 @@ impl Ctx {
             cands.push(Obj::Hand(k as u16));
         }
         let of: V3 = o.map(|v| v as f32);
+        // The walls hide a ball that runs into one (the end walls have no goal opening), as
+        // the render does.
+        let table = Table::new(&self.scene);
         let (wi, hi) = (camera.width as f64, camera.height as f64);
         let (mut seen, mut total) = (0.0, 0.0);
         for ring in 0..RINGS {
@@ -128,10 +131,11 @@ impl Ctx {
                     continue;
                 }
                 let df: V3 = d.map(|v| v as f32);
-                if self
-                    .shader
-                    .trace(g, &cands, of, df, 0.0, (th - 0.5) as f32, None)
-                    .is_none()
+                if table.trace_walls(of, df) >= th as f32
+                    && self
+                        .shader
+                        .trace(g, &cands, of, df, 0.0, (th - 0.5) as f32, None)
+                        .is_none()
                 {
                     seen += rho;
                 }
