@@ -8,8 +8,8 @@ use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::memo::{bilinear, leaves_block, AlphaMemo, Block, SURE_INSIDE};
 use super::tuning::{
     AREA_RATIO_MAX, AREA_RATIO_MIN, EXTENT_RATIO_MAX, MIN_EDGE_POINTS,
-    MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RESIDUAL_RATIO_MAX,
-    SMEAR_FADED_FRACTION, WINDOW_RADII,
+    MIN_EDGE_POINTS_NEAR_PREDICTION, MIN_OCTANTS, NEAR_WINDOW_RADII, N_RAYS, RAY_START_RATIO,
+    RESIDUAL_RATIO_MAX, SMEAR_FADED_FRACTION, WINDOW_RADII,
 };
 use crate::calib::ball::expected_radius_px;
 use crate::calib::CameraCalibration;
@@ -471,6 +471,35 @@ impl BallDetector {
         v
     }
 
+    /// Every memo cell within `radius_q` quads of `(cx_q, cy_q)` holds a colour position of
+    /// at least [`SURE_INSIDE`] (surely the ball's colour; a cell not computed yet, or the
+    /// disc not wholly in the memo: false).
+    fn sure_disc(&self, cx_q: f64, cy_q: f64, radius_q: f64) -> bool {
+        let m = &self.alpha;
+        let y_lo = (cy_q - radius_q).floor() as isize;
+        let y_hi = (cy_q + radius_q).ceil() as isize;
+        if y_lo < m.y0 || y_hi >= m.y0 + m.h as isize {
+            return false;
+        }
+        (y_lo..=y_hi).all(|y| {
+            let dy = (y as f64 - cy_q).abs().max(0.0);
+            let half = (radius_q * radius_q - (dy - 1.0).max(0.0).powi(2))
+                .max(0.0)
+                .sqrt();
+            let (x_lo, x_hi) = (
+                (cx_q - half).floor() as isize,
+                (cx_q + half).ceil() as isize,
+            );
+            if x_lo < m.x0 || x_hi >= m.x0 + m.w as isize {
+                return false;
+            }
+            let row = (y - m.y0) as usize * m.w;
+            let (a, b) = (row + (x_lo - m.x0) as usize, row + (x_hi - m.x0) as usize);
+            // NaN (not computed) compares false.
+            m.cells[a..=b].iter().all(|&v| v >= SURE_INSIDE)
+        })
+    }
+
     /// Fills the memo's cells within `radius_q` quads of `(cx_q, cy_q)` row by row (the quads
     /// nearly every ray reads; the rest stay computed on first use).
     fn prefill_alpha(&mut self, view: &FrameView, cx_q: f64, cy_q: f64, radius_q: f64) {
@@ -537,12 +566,28 @@ impl BallDetector {
         // Samples in a block of quads all of the ball's colour are inside whatever their
         // place in it: no bilinear value is computed for them (the plain path computes each).
         let blocks = !self.plain && self.alpha.w > 0;
+        // Where every quad within `RAY_START_RATIO` radii of the centre (and the bilinear
+        // neighbours) is surely the ball's colour, the rays' samples before it are inside
+        // whatever their place: each ray starts there, as the march through them would.
+        let far = RAY_START_RATIO * rq;
+        let skip = blocks && self.sure_disc(blob.cx_q, blob.cy_q, far + 1.5);
         for i in 0..N_RAYS {
             let [c, s] = self.dirs[i].map(|v| v as f64);
             let mut t = 0.3 * rq;
             // The previous sample's `t` and colour position (NaN: not computed, inside).
             let mut prev: Option<(f64, f32)> = None;
             let mut inside = false;
+            if skip {
+                // The same sums as the march's.
+                let mut last = t;
+                while t < far {
+                    last = t;
+                    t += dt;
+                }
+                if t > 0.3 * rq {
+                    (prev, inside) = (Some((last, f32::NAN)), true);
+                }
+            }
             let mut edge = None;
             // Samples of the ball's colour since the last occluder (`None`: none crossed).
             let mut since_occluder: Option<usize> = None;

@@ -28,6 +28,12 @@ pub const SMEAR_ANGLES: usize = 16;
 /// bends within the exposure (a bounce, a stop in the goal) is no mirror of itself; the
 /// sphere's fit then takes it.
 pub const SMEAR_ASYMMETRY_MAX: f64 = 0.1;
+/// Where a ray from a blob's centre starts looking for the ball's edge, in expected image
+/// radii, when the ball's colour is there: a sphere's outline lies at least this far from a
+/// centre it holds (an oval image off the optical axis is at most a few percent narrower
+/// than its expected radius, and a blob's centre is off by a fraction of a radius for a ball
+/// partly hidden). Nearer samples would only be inside. Else the ray starts at 0.3 radii.
+pub const RAY_START_RATIO: f64 = 0.6;
 /// Edge points a fit needs.
 pub const MIN_EDGE_POINTS: usize = 8;
 /// Edge points a fit needs when the tracker predicts the ball there: the prediction's two
