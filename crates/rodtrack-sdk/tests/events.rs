@@ -337,3 +337,69 @@ fn a_stalled_camera_changes_no_ball_row_and_no_event() {
     assert_eq!(rows.len(), stalled_rows.len());
     assert_eq!(events, stalled_events, "the events");
 }
+
+/// A hand stops the ball rolling towards goal A, 100 mm before the goal line, and holds it
+/// there under the palm for 2.6 s (longer than the goal's grace time), then lifts: the ball
+/// never crossed the line, so no goal. (The tracker predicts a ball it stops seeing for 0.1 s
+/// along its last velocity: at 1.5 m/s that path crosses the line.)
+#[test]
+fn a_hand_holding_the_ball_before_the_goal_mouth_is_no_goal() {
+    use rodtrack_sim::scenario::{BallPath, HandPass, Scenario};
+    use rodtrack_sim::scene::SceneConfig;
+    use rodtrack_sim::{default_cameras, render::RenderMode};
+    let seed = 5;
+    let scene = SceneConfig::default();
+    let mut sc = Scenario::by_name("ball", &scene, seed).unwrap();
+    // World frame: goal A's line at x = 0, the mouth's middle at y = W / 2.
+    let y = 0.5 * scene.field_width_mm + 20.0;
+    let stop_x = 117.5;
+    sc.ball = Some(BallPath::new(vec![
+        (0.0, 417.5, y),
+        (0.2, stop_x, y),
+        (3.0, stop_x, y),
+        (3.4, 417.5, y),
+        (4.0, 417.5, y),
+    ]));
+    let palm_z = scene.ball_diameter_mm + 0.5 * scene.hand.palm_mm[2] + 5.0;
+    let above = [stop_x, y, 250.0];
+    let on = [stop_x, y, palm_z];
+    sc.hands = vec![
+        HandPass {
+            t0_s: 0.0,
+            t1_s: 0.17,
+            from_mm: above,
+            to_mm: on,
+            side: 1.0,
+        },
+        HandPass {
+            t0_s: 0.17,
+            t1_s: 2.8,
+            from_mm: on,
+            to_mm: on,
+            side: 1.0,
+        },
+        HandPass {
+            t0_s: 2.8,
+            t1_s: 3.0,
+            from_mm: on,
+            to_mm: above,
+            side: 1.0,
+        },
+    ];
+    sc.events.clear();
+    let sc = sc.with_frames(800);
+    let mut sim = Simulation::new(scene, default_cameras(), sc, RenderMode::Fast)
+        .unwrap()
+        .with_seed(seed);
+    // The ball is hidden while the hand holds it.
+    let t = sim.ball_truth(300).unwrap();
+    assert!(t.visible.iter().all(|&v| v < 0.25), "{:?}", t.visible);
+    let cal = calibrate(&mut sim, seed);
+    let (found, counts) = track_events(&sim, &cal);
+    for e in &found {
+        eprintln!("found: {}", e.json_line());
+    }
+    let goals: Vec<_> = found.iter().filter(|e| e.kind.name() == "goal").collect();
+    assert!(goals.is_empty(), "false goals: {goals:?}");
+    assert_eq!(counts.goals, 0);
+}

@@ -20,6 +20,14 @@ pub struct EventConfig {
     pub goal_width_mm: f64,
     /// How long the ball must stay away after crossing a goal line for a goal, s.
     pub goal_grace_s: f64,
+    /// A goal line crossed by the prediction alone (the ball unseen at the crossing) counts
+    /// only when the ball was last seen at most this long before the crossing row, s. A ball
+    /// entering a goal mouth stays in view until its centre reaches the line (the end wall
+    /// hides only what has passed it), so it is lost a frame before it crosses, or a few
+    /// when a figure's foot hides it there too; a ball lost longer before (a hand holding
+    /// it, a figure hiding it on the field) may not have gone in. Default 0.025 (5 frames at
+    /// 200 per second, 2 at 100).
+    pub goal_unseen_max_s: f64,
     /// An `ok` row within this distance of a goal line, on the field side, during the grace
     /// time, is the ball coming back out of the goal: no goal, mm.
     pub return_zone_mm: f64,
@@ -74,6 +82,7 @@ impl Default for EventConfig {
             rod_axis_height_mm: 80.0,
             goal_width_mm: 205.0,
             goal_grace_s: 0.5,
+            goal_unseen_max_s: 0.025,
             return_zone_mm: 200.0,
             line_margin_mm: 10.0,
             shot_min_speed_mm_s: 1500.0,
@@ -105,6 +114,7 @@ impl EventConfig {
             ("rod_axis_height_mm", self.rod_axis_height_mm, true),
             ("goal_width_mm", self.goal_width_mm, false),
             ("goal_grace_s", self.goal_grace_s, false),
+            ("goal_unseen_max_s", self.goal_unseen_max_s, true),
             ("return_zone_mm", self.return_zone_mm, false),
             ("line_margin_mm", self.line_margin_mm, true),
             ("shot_min_speed_mm_s", self.shot_min_speed_mm_s, false),

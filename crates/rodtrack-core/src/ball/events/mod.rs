@@ -10,6 +10,9 @@
 //!   field to one beyond the line) within the goal mouth (`|y - y_centre|` at the crossing at
 //!   most half [`EventConfig::goal_width_mm`]), and no `ok` row puts it back on the field
 //!   near that goal ([`EventConfig::return_zone_mm`]) within [`EventConfig::goal_grace_s`].
+//!   A crossing only the prediction makes counts when the ball was seen at most
+//!   [`EventConfig::goal_unseen_max_s`] before it (a ball held or hidden before the mouth
+//!   does not score).
 //!   The event's frame is the crossing's; it is written once the grace time has passed. A
 //!   goal is counted again only after the ball has been seen on the field.
 //! - **shot**: an `ok` row at least [`EventConfig::shot_min_speed_mm_s`] whose speed exceeds
@@ -357,7 +360,14 @@ impl EventDetector {
         if placed {
             if self.pending_goal.is_none() && self.armed {
                 if let Some(prev) = self.prev {
-                    self.crossing(prev, (row.x_mm, row.y_mm), row.frame, t);
+                    // Seen at the crossing, or lost just before it (the mouth hides it).
+                    let credible = seen
+                        || self
+                            .last_seen
+                            .is_some_and(|s| t.seconds_since(s.t) <= self.cfg.goal_unseen_max_s);
+                    if credible {
+                        self.crossing(prev, (row.x_mm, row.y_mm), row.frame, t);
+                    }
                 }
             }
             self.prev = Some((row.x_mm, row.y_mm));
