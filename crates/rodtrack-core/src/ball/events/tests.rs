@@ -107,6 +107,28 @@ fn a_ball_into_the_mouth_that_stays_away_is_a_goal() {
     );
 }
 
+/// A ball last seen 107.5 mm before goal B's line (a hand holding it): the prediction
+/// carries it over the line 0.075 s later, longer after its last sighting than
+/// `goal_unseen_max_s` (0.025 s), so no goal; last seen 27.5 mm before it (0.02 s), a goal.
+#[test]
+fn a_crossing_long_after_the_last_sighting_is_no_goal() {
+    let mut s = Script::new();
+    // 1.5 m/s from x = 200: x = 500 at 0.2 s, then predicted from there.
+    s.ok(0.2, [200.0, 30.0], [1500.0, 0.0])
+        .seg(0.1, [500.0, 30.0], [1500.0, 0.0], BallStatus::Predicted)
+        .lost(1.0);
+    let (ev, score) = s.events();
+    assert!(goals(&ev).is_empty(), "{ev:?}");
+    assert_eq!(score, [0, 0]);
+    let mut s = Script::new();
+    s.ok(0.2, [280.0, 30.0], [1500.0, 0.0])
+        .seg(0.1, [580.0, 30.0], [1500.0, 0.0], BallStatus::Predicted)
+        .lost(1.0);
+    let (ev, score) = s.events();
+    assert_eq!(goals(&ev).len(), 1, "{ev:?}");
+    assert_eq!(score, [1, 0]);
+}
+
 /// The same ball seen again coming back out of the goal within the grace time: no goal.
 #[test]
 fn a_ball_coming_back_within_the_grace_time_is_no_goal() {
