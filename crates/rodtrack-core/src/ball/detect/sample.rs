@@ -89,7 +89,8 @@ impl BallDetector {
 
     /// Every memo cell within `radius_q` quads of `(cx_q, cy_q)` holds a colour position of
     /// at least [`SURE_INSIDE`] (surely the ball's colour; a cell not computed yet, or the
-    /// disc not wholly in the memo: false).
+    /// disc not wholly in the memo: false). Checks a little more than the disc, never less:
+    /// each row as wide as the disc is a quad nearer the centre, rounded outwards.
     pub(super) fn sure_disc(&self, cx_q: f64, cy_q: f64, radius_q: f64) -> bool {
         let m = &self.alpha;
         let y_lo = (cy_q - radius_q).floor() as isize;
@@ -98,7 +99,7 @@ impl BallDetector {
             return false;
         }
         (y_lo..=y_hi).all(|y| {
-            let dy = (y as f64 - cy_q).abs().max(0.0);
+            let dy = (y as f64 - cy_q).abs();
             let half = (radius_q * radius_q - (dy - 1.0).max(0.0).powi(2))
                 .max(0.0)
                 .sqrt();
