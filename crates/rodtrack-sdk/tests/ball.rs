@@ -634,6 +634,73 @@ fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
     assert!(compared > 100, "too few detections: {compared}");
 }
 
+/// A ball the coarse scan of the whole field finds is found alike by the scan of a reach that
+/// holds its centre (the tracker's first scan after the window misses the ball: where it can
+/// have gone since it was last seen), the reach's centre anywhere up to 95 % of its radius
+/// from the ball, and that scan covers a small part of the field. Over the ball scenario on
+/// tables as built, both cameras.
+#[test]
+fn every_ball_the_whole_scan_finds_a_reach_holding_it_finds_alike() {
+    use rodtrack_core::ball::{BallDetector, Reach, ScanArea};
+    use rodtrack_core::FrameView;
+    let mut compared = 0usize;
+    let (mut part_min, mut part_max) = (f64::INFINITY, 0.0f64);
+    for (seed, setup) in [(1, "asbuilt:1"), (2, "asbuilt:2")] {
+        let frames = 60;
+        let mut sim = build_simulation("ball", Some(frames), seed, false, setup).unwrap();
+        for cam in 0..sim.cameras().len() {
+            let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
+            let mut det = BallDetector::new(&cal).unwrap().unwrap();
+            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
+            for f in 0..frames {
+                let meta = sim.render(f, cam, &mut buf).unwrap();
+                let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
+                    .unwrap();
+                let Some(whole) = det.detect(&view, None) else {
+                    continue;
+                };
+                // A frame at 200 fps at 15 m/s, and a ball's radius: the tracker's first reach.
+                let radius_mm = 75.0 + 17.5;
+                let (a, d) = (2.4 * f as f64, 0.95 * radius_mm * (f % 5) as f64 / 4.0);
+                let reach = Reach {
+                    centre_mm: [whole.x_mm + d * a.cos(), whole.y_mm + d * a.sin()],
+                    radius_mm,
+                };
+                let area = ScanArea {
+                    band: None,
+                    reach: Some(reach),
+                };
+                let (part, field) = (det.scan_quads(area), det.scan_quads(ScanArea::default()));
+                assert!(
+                    5 * part < field,
+                    "{setup} camera {cam} frame {f}: the reach covers {part} of {field} quads"
+                );
+                part_min = part_min.min(part as f64 / field as f64);
+                part_max = part_max.max(part as f64 / field as f64);
+                let found = det.detect_in_area(&view, None, area);
+                assert!(
+                    found.is_some_and(|d| {
+                        (d.u_px - whole.u_px).abs() < 1e-9
+                            && (d.v_px - whole.v_px).abs() < 1e-9
+                            && (d.x_mm - whole.x_mm).abs() < 1e-9
+                            && (d.y_mm - whole.y_mm).abs() < 1e-9
+                            && d.edge_points == whole.edge_points
+                    }),
+                    "{setup} camera {cam} frame {f}: the reach around ({:.1}, {:.1}) mm finds \
+                     {found:?}, the whole scan the ball at ({:.1}, {:.1}) mm",
+                    reach.centre_mm[0],
+                    reach.centre_mm[1],
+                    whole.x_mm,
+                    whole.y_mm
+                );
+                compared += 1;
+            }
+        }
+    }
+    eprintln!("{compared} detections; the reach covers {part_min:.3}-{part_max:.3} of the field");
+    assert!(compared > 100, "too few detections: {compared}");
+}
+
 /// Each camera's detector on its own (the coarse scan, no prediction) over the frames of
 /// scenario `shots` (seed 3, the first 2400 frames) where the ball flies at 8 m/s or more and
 /// the camera sees at least 90 % of it, on `setup`: (frames, found, errors in mm).

@@ -2,8 +2,11 @@
 //! of the ball's expected size, its silhouette's edge points, and the sphere's centre fitted
 //! to their rays (no allocation per frame: every buffer is made in [`BallDetector::new`]).
 
+mod area;
 mod sample;
 mod smear;
+
+pub use area::Reach;
 
 use super::colour::{ColourModel, QuadLayout, OFF_AXIS};
 use super::memo::{bilinear, leaves_block, AlphaMemo, Block};
@@ -36,6 +39,18 @@ pub struct Detection {
     /// opposite sides (0 field, 1 ball) times the ball's radius. With `edge_points` it sets
     /// the measurement's weight in the tracker.
     pub residual_mm: f64,
+}
+
+/// Where the coarse scan looks when the window finds no ball: the part of the field a ball
+/// last seen can have reached (`reach`), when that is no larger than the band (`band`, `(k,
+/// n)`: band `k` of `n`) or, without a band, than the whole field; else the band; else the
+/// whole field.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ScanArea {
+    /// Band `k` of `n` of the field's rows.
+    pub band: Option<(usize, usize)>,
+    /// The disc the ball is known to be in.
+    pub reach: Option<Reach>,
 }
 
 /// The detector of one camera; see the module documentation.
@@ -230,6 +245,16 @@ impl BallDetector {
         around_px: Option<(f64, f64)>,
         band: Option<(usize, usize)>,
     ) -> Option<Detection> {
+        self.detect_in_area(view, around_px, ScanArea { band, reach: None })
+    }
+
+    /// [`BallDetector::detect`] with the coarse scan limited to `area` (see [`ScanArea`]).
+    pub fn detect_in_area(
+        &mut self,
+        view: &FrameView,
+        around_px: Option<(f64, f64)>,
+        area: ScanArea,
+    ) -> Option<Detection> {
         if view.width() / 2 != self.qw || view.height() / 2 != self.qh {
             return None;
         }
@@ -259,17 +284,26 @@ impl BallDetector {
                 }
             }
         }
-        let mut region = self.field_q;
-        if let Some((k, n)) = band.filter(|&(k, n)| n > 1 && k < n) {
-            let [_, y0, _, y1] = self.field_q;
-            let h = (y1 - y0).div_ceil(n);
-            let margin = (EXTENT_RATIO_MAX * 2.0 * self.rq_high).ceil() as usize + self.coarse_step;
-            // On the whole scan's grid of rows: a band's cells are the whole scan's.
-            let step = self.coarse_step;
-            region[1] = y0 + (k * h).saturating_sub(margin) / step * step;
-            region[3] = (y0 + (k + 1) * h + margin).min(y1);
-        }
+        let region = self.scan_region(area);
         self.scan_and_fit(view, region, self.coarse_step, None)
+    }
+
+    /// The quads the coarse scan of `area` covers (at every coarse step's quad): what its
+    /// cost grows with.
+    pub fn scan_quads(&self, area: ScanArea) -> usize {
+        Self::region_quads(self.scan_region(area))
+    }
+
+    /// The quads `[x0, y0, x1, y1)` the coarse scan of `area` covers.
+    fn scan_region(&self, area: ScanArea) -> [usize; 4] {
+        let wide = area
+            .band
+            .and_then(|b| self.band_region(b))
+            .unwrap_or(self.field_q);
+        match area.reach.and_then(|r| self.reach_region(r)) {
+            Some(r) if Self::region_quads(r) <= Self::region_quads(wide) => r,
+            _ => wide,
+        }
     }
 
     /// The best blob of `region` fitted; `predicted_px`: where the tracker predicts the ball

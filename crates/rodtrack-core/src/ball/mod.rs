@@ -20,7 +20,7 @@ mod memo;
 pub mod track;
 pub mod tuning;
 
-pub use detect::{BallDetector, Detection};
+pub use detect::{BallDetector, Detection, Reach, ScanArea};
 pub use fuse::{BallFuser, CameraBall};
 pub use track::BallTracker;
 

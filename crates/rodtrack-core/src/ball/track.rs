@@ -2,7 +2,7 @@
 //! finds nothing, and a constant-velocity Kalman filter per axis for the velocity and for
 //! short occlusions.
 
-use super::detect::{BallDetector, Detection};
+use super::detect::{BallDetector, Detection, Reach, ScanArea};
 use super::tuning::{
     ACCEL_MM_S2, GATE_SIGMAS, MAX_SPEED_MM_S, MEAS_SIGMA_MIN_MM, PREDICTED_SCAN_BANDS, PREDICT_S,
 };
@@ -141,14 +141,25 @@ impl BallTracker {
                 .camera()
                 .project([self.axes[0].p, self.axes[1].p, self.det.radius_mm()])
         });
-        // A ball the window misses is searched on the whole field (a kick may have sent it
-        // beyond the window); while it stays unseen and predicted, band by band.
-        let band = (around.is_some() && self.unseen).then(|| {
-            let k = self.scan_band;
-            self.scan_band = (k + 1) % PREDICTED_SCAN_BANDS;
-            (k, PREDICTED_SCAN_BANDS)
-        });
-        let det = self.det.detect_in_band(view, around, band);
+        // A ball the window misses is searched where it can have gone since it was last seen,
+        // at the fastest shot's speed (a kick may have sent it beyond the window); while it
+        // stays unseen and predicted, there or band by band, whichever is smaller.
+        let area = match around {
+            Some(_) => ScanArea {
+                band: self.unseen.then(|| {
+                    let k = self.scan_band;
+                    self.scan_band = (k + 1) % PREDICTED_SCAN_BANDS;
+                    (k, PREDICTED_SCAN_BANDS)
+                }),
+                reach: self.last.map(|(t0, p0)| Reach {
+                    centre_mm: p0,
+                    radius_mm: MAX_SPEED_MM_S * timestamp_ns.seconds_since(t0).max(0.0)
+                        + self.det.radius_mm(),
+                }),
+            },
+            None => ScanArea::default(),
+        };
+        let det = self.det.detect_in_area(view, around, area);
         self.unseen = det.is_none();
         if let Some(d) = &det {
             self.update(d, timestamp_ns);

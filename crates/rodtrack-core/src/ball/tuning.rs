@@ -63,13 +63,16 @@ pub const ACCEL_MM_S2: f64 = 10_000.0;
 pub const GATE_SIGMAS: f64 = 4.0;
 /// Floor of the measurement's standard deviation, mm.
 pub const MEAS_SIGMA_MIN_MM: f64 = 0.1;
-/// The fastest ball the filter expects at first sight, mm/s (the hardest shots,
-/// 15 m/s): the velocity's prior standard deviation before a second detection gives it.
+/// The fastest ball the tracker expects, mm/s (the hardest shots, 15 m/s): the
+/// velocity's prior standard deviation at first sight, before a second detection gives it, and
+/// how far a ball the window misses can have gone since it was last seen (the coarse scan's
+/// reach; a faster ball is found when the reach or a band of the field holds it).
 pub const MAX_SPEED_MM_S: f64 = 15_000.0;
 /// Bands the coarse scan of the whole field is cut into while the filter predicts a ball it
 /// has not seen for more than a frame (under a figure, a hand): one band per frame, the whole
 /// field every this many frames (20 ms at 200 fps, within [`PREDICT_S`]), so that a hidden
 /// ball costs a frame a fraction of a full re-detection. The first frame the window misses
-/// the ball, and every frame once the ball is lost for longer than the prediction, scan the
-/// whole field.
+/// the ball scans the part of the field the ball can have reached since it was last seen (at
+/// [`MAX_SPEED_MM_S`]), and later frames do too while that is smaller than a band; every frame
+/// once the ball is lost for longer than the prediction scans the whole field.
 pub const PREDICTED_SCAN_BANDS: usize = 4;
