@@ -276,7 +276,8 @@ pub fn calibrate_rod_with(
     // the common vanishing point. One rod's own direction comes from about 100 mm of rings and
     // a few clicks of a pixel; an error of 1e-3 in it turns the angle by about 20 mrad at
     // 175 mm from the reference (the line off by 0.2 px across an 11 px radius). Known poses,
-    // when given, measure the line over the travel below and supersede this.
+    // when given, measure the line's place over the travel below (its direction stays the
+    // common one).
     if let Some(dir3) = extras.direction {
         let s_c = silhouette
             .as_ref()
@@ -353,8 +354,21 @@ pub fn calibrate_rod_with(
                 along = a;
                 travel_model = "known_poses";
             }
-            let (c, _) = refine_centre_line(curve, &along, &knot_range, &poses, &used, &marker);
+            let (c, at_poses) =
+                refine_centre_line(curve, &along, &knot_range, &poses, &used, &marker);
             curve = c;
+            // The poses' silhouettes move the line's place; its direction is still the one
+            // the rods share: each pose's silhouette is pulled by what lies beside the rod
+            // there (a few tenths of a pixel), which one rod's line over its travel takes as a
+            // tilt, and the rods' common direction averages over all of them.
+            if let Some(dir3) = extras.direction {
+                let s_c = at_poses
+                    .as_ref()
+                    .map_or(s_ref + 0.5 * marker.length_mm(), |f| f.s_mean_mm);
+                if let Some(c) = curve.toward_vanishing(dir3, along.lambda(s_c)) {
+                    curve = c;
+                }
+            }
         }
     } else if let Some((h, l, gg)) = h_from_rods {
         along = AlongTravel {

@@ -60,7 +60,7 @@ pub fn calibrate_rods(
     let Some(k) = intrinsics else {
         return first;
     };
-    let planes: Vec<[f64; 3]> = first
+    let planes: Vec<([f64; 3], f64)> = first
         .iter()
         .filter_map(|c| c.as_ref().ok())
         .filter_map(|c| rod_plane(c, k))
@@ -73,8 +73,11 @@ pub fn calibrate_rods(
 }
 
 /// The plane through the camera centre that holds a calibrated rod's line (its knots
-/// undistorted), as in [`line_plane`].
-fn rod_plane(cal: &RodCalibration, k: &CameraIntrinsics) -> Option<[f64; 3]> {
+/// undistorted), as in [`line_plane`], and its weight in the rods' common direction: the
+/// square of the measured line's length (normalised units). A line's direction errs by its
+/// points' error over its length, so a rod with a short travel (a goalkeeper's) or few
+/// clicks fixes its plane's tilt less than a long one.
+fn rod_plane(cal: &RodCalibration, k: &CameraIntrinsics) -> Option<([f64; 3], f64)> {
     let kn = &cal.knots;
     let marker_len = cal.marker.validate().ok()?.length_mm();
     let pts: Vec<[f64; 2]> = (0..kn.len())
@@ -90,5 +93,7 @@ fn rod_plane(cal: &RodCalibration, k: &CameraIntrinsics) -> Option<[f64; 3]> {
         })
         .collect();
     let (c, d) = fit_line_tls(&pts)?;
-    Some(line_plane(c, d))
+    let (a, b) = (pts.first()?, pts.last()?);
+    let span = (a[0] - b[0]).hypot(a[1] - b[1]);
+    Some((line_plane(c, d), span * span))
 }

@@ -139,17 +139,19 @@ pub fn line_plane(n0: [f64; 2], d: [f64; 2]) -> [f64; 3] {
 }
 
 /// The 3-D direction common to parallel rods: the unit vector most nearly orthogonal to every
-/// rod's plane (the smallest eigenvector of the planes' scatter), or `None` with fewer than 2
-/// planes or planes that do not fix it (all the same).
-pub fn common_direction(planes: &[[f64; 3]]) -> Option<[f64; 3]> {
-    if planes.len() < 2 {
+/// rod's plane (the smallest eigenvector of the planes' scatter, each plane's unit normal
+/// weighed by its weight: the inverse variance of its direction), or `None` with fewer than 2
+/// planes, a weight that is not finite and positive, or planes that do not fix it (all the
+/// same).
+pub fn common_direction(planes: &[([f64; 3], f64)]) -> Option<[f64; 3]> {
+    if planes.len() < 2 || !planes.iter().all(|p| p.1.is_finite() && p.1 > 0.0) {
         return None;
     }
     let mut m = [[0.0f64; 3]; 3];
-    for p in planes {
+    for (p, w) in planes {
         for i in 0..3 {
             for j in 0..3 {
-                m[i][j] += p[i] * p[j];
+                m[i][j] += w * p[i] * p[j];
             }
         }
     }
@@ -157,7 +159,7 @@ pub fn common_direction(planes: &[[f64; 3]]) -> Option<[f64; 3]> {
     // direction is not fixed by the rods.
     let trace = m[0][0] + m[1][1] + m[2][2];
     // Inverse iteration from the planes' mean cross product.
-    let mut x = normalise3(cross(planes[0], planes[planes.len() - 1]));
+    let mut x = normalise3(cross(planes[0].0, planes[planes.len() - 1].0));
     if !x.iter().all(|v| v.is_finite()) {
         x = [0.0, 1.0, 0.0];
     }
@@ -410,10 +412,25 @@ mod tests {
                 (n0, [dl[0] / len, dl[1] / len], g, u[2] / p0[2])
             })
             .collect();
-        let planes: Vec<[f64; 3]> = lines.iter().map(|l| line_plane(l.0, l.1)).collect();
+        let planes: Vec<([f64; 3], f64)> =
+            lines.iter().map(|l| (line_plane(l.0, l.1), 1.0)).collect();
         let dir = common_direction(&planes).unwrap();
         let u = rs[0].1;
         assert!((dot(dir, u).abs() - 1.0).abs() < 1e-9, "{dir:?}");
+        // A rod whose line is off (its plane turned by 10 mrad about the line's point) moves
+        // the common direction by its weight's share: weighed at 1/100 of the others (a
+        // direction measured over a tenth of their span), ten times less than at their weight.
+        let (n0, d) = (lines[0].0, lines[0].1);
+        let off = line_plane(n0, [d[0] - 0.01 * d[1], d[1] + 0.01 * d[0]]);
+        let turned = |w: f64| {
+            let mut p = planes.clone();
+            p.push((off, w));
+            let x = common_direction(&p).unwrap();
+            (1.0 - dot(x, u).abs().min(1.0)).max(0.0).sqrt()
+        };
+        let (equal, light) = (turned(1.0), turned(0.01));
+        assert!(equal > 1e-4 && light < 0.1 * equal, "{equal:e} {light:e}");
+        assert!(common_direction(&[(planes[0].0, 1.0), (planes[1].0, f64::NAN)]).is_none());
         for l in &lines {
             let h = h_from_direction(dir, l.0, l.1, l.2).unwrap();
             assert!(
