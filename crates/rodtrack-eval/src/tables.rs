@@ -1,7 +1,8 @@
 //! Accuracy over random tables as built: for each seed, the simulator's `poses` scenario on
 //! `asbuilt:SEED` (every rod at a new random pose each frame, over its whole travel) recorded
 //! as `rodtrack simulate` records it, calibrated from its files as `rodtrack calibrate` does
-//! (with or without known poses at the travel's ends), tracked without the filter (raw rows,
+//! (with known poses at the travel's ends and their angle, with their positions alone, or
+//! without known poses: [`KnownPoses`]), tracked without the filter (raw rows,
 //! as `track --raw`), and scored per camera. The worst and the median camera over all tables
 //! are what the README's accuracy table quotes.
 
@@ -12,6 +13,46 @@ use rodtrack_io::VecSink;
 use rodtrack_sdk::{calibrate_files, Session, SessionOptions};
 use rodtrack_sim::{build_simulation, write_recording, CalibOptions, RecordOptions};
 use std::path::{Path, PathBuf};
+
+/// What calibration is given besides the reference pose and the clicks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KnownPoses {
+    /// Known poses at the travel's ends (each rod at its start, middle and end) with their
+    /// angle.
+    WithAngle,
+    /// The same poses with their position alone (the angle not known there).
+    PositionOnly,
+    /// No known poses.
+    None,
+}
+
+impl KnownPoses {
+    /// Every mode, in the order the evaluation reports them.
+    pub const ALL: [KnownPoses; 3] = [
+        KnownPoses::WithAngle,
+        KnownPoses::PositionOnly,
+        KnownPoses::None,
+    ];
+
+    /// How the tables name the mode.
+    pub fn label(self) -> &'static str {
+        match self {
+            KnownPoses::WithAngle => "with angle",
+            KnownPoses::PositionOnly => "position only",
+            KnownPoses::None => "none",
+        }
+    }
+
+    /// The work folder's suffix for the mode.
+    fn suffix(self) -> &'static str {
+        match self {
+            KnownPoses::WithAngle => "-known",
+            KnownPoses::PositionOnly => "-known-position",
+            KnownPoses::None => "",
+        }
+    }
+}
 
 /// One camera of one table.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -43,8 +84,8 @@ pub struct Spread {
 /// Every camera of every table, and their worst and median.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct TablesResult {
-    /// Whether calibration had the known poses at the travel's ends (with their angle).
-    pub known_poses: bool,
+    /// What calibration had besides the reference pose and the clicks.
+    pub known_poses: KnownPoses,
     /// Per table and camera.
     pub cameras: Vec<TableCamera>,
     /// The worst camera, figure by figure.
@@ -59,13 +100,10 @@ pub struct TablesResult {
 
 /// Records, calibrates, tracks and scores `asbuilt:SEED` for every seed, in a folder under
 /// `work` that is removed after each table (a table's frames are about 100 MB).
-pub fn run_tables(seeds: &[u64], known_poses: bool, work: &Path) -> Result<TablesResult> {
+pub fn run_tables(seeds: &[u64], known_poses: KnownPoses, work: &Path) -> Result<TablesResult> {
     let mut cameras = Vec::new();
     for &seed in seeds {
-        let dir = work.join(format!(
-            "asbuilt-{seed}{}",
-            if known_poses { "-known" } else { "" }
-        ));
+        let dir = work.join(format!("asbuilt-{seed}{}", known_poses.suffix()));
         let result = table(seed, known_poses, &dir);
         // The frames go whatever happened; a failure to remove them is not the table's.
         let _ = std::fs::remove_dir_all(&dir);
@@ -74,13 +112,14 @@ pub fn run_tables(seeds: &[u64], known_poses: bool, work: &Path) -> Result<Table
     Ok(summarise(known_poses, cameras))
 }
 
-fn table(seed: u64, known_poses: bool, dir: &Path) -> Result<Vec<TableCamera>> {
+fn table(seed: u64, known_poses: KnownPoses, dir: &Path) -> Result<Vec<TableCamera>> {
     let setup = format!("asbuilt:{seed}");
     let mut sim = build_simulation("poses", None, seed, false, &setup)?;
     let opts = RecordOptions {
         calib_seed: seed,
         calib: CalibOptions {
-            known_poses,
+            known_poses: known_poses != KnownPoses::None,
+            known_pose_angles: known_poses == KnownPoses::WithAngle,
             ..CalibOptions::default()
         },
         ..RecordOptions::default()
@@ -127,7 +166,7 @@ fn table(seed: u64, known_poses: bool, dir: &Path) -> Result<Vec<TableCamera>> {
 }
 
 /// The worst and median of each figure over `cameras`.
-pub fn summarise(known_poses: bool, cameras: Vec<TableCamera>) -> TablesResult {
+pub fn summarise(known_poses: KnownPoses, cameras: Vec<TableCamera>) -> TablesResult {
     let pick = |f: &dyn Fn(&Stats) -> f64, worst_is_low: bool| -> (f64, f64) {
         let mut v: Vec<f64> = cameras.iter().map(|c| f(&c.stats)).collect();
         v.sort_by(f64::total_cmp);
@@ -181,12 +220,13 @@ pub fn format_tables(results: &[TablesResult]) -> String {
          | known poses | camera | coverage | position std / max (mm) | angle std / max (rad) |\n\
          |---|---|---|---|---|\n",
     );
-    let row = |s: &mut String, kp: bool, who: &str, c: f64, ps: f64, pm: f64, a: f64, am: f64| {
-        s.push_str(&format!(
-            "| {} | {who} | {c:.3} | {ps:.4} / {pm:.3} | {a:.4} / {am:.4} |\n",
-            if kp { "yes" } else { "no" }
-        ));
-    };
+    let row =
+        |s: &mut String, kp: KnownPoses, who: &str, c: f64, ps: f64, pm: f64, a: f64, am: f64| {
+            s.push_str(&format!(
+                "| {} | {who} | {c:.3} | {ps:.4} / {pm:.3} | {a:.4} / {am:.4} |\n",
+                kp.label()
+            ));
+        };
     for r in results {
         for (who, sp) in [("worst", &r.worst), ("median", &r.median)] {
             row(
@@ -206,8 +246,8 @@ pub fn format_tables(results: &[TablesResult]) -> String {
         .iter()
         .map(|r| {
             format!(
-                "{} known poses {}, {}",
-                if r.known_poses { "with" } else { "without" },
+                "known poses {}: {}, {}",
+                r.known_poses.label(),
                 r.gross,
                 r.wrong_ok
             )
@@ -220,7 +260,7 @@ pub fn format_tables(results: &[TablesResult]) -> String {
             let st = &c.stats;
             s.push_str(&format!(
                 "| {} | {} | {} | {:.3} | {:.4} / {:.3} | {:.4} / {:.4} |\n",
-                if r.known_poses { "yes" } else { "no" },
+                r.known_poses.label(),
                 c.setup,
                 c.camera,
                 st.coverage,
@@ -252,14 +292,17 @@ mod tests {
     #[test]
     fn the_worst_is_the_largest_error_and_the_least_coverage() {
         let r = summarise(
-            true,
+            KnownPoses::WithAngle,
             vec![cam(0.002, 1.0), cam(0.001, 0.99), cam(0.003, 1.0)],
         );
         assert_eq!(r.worst.ang_std_rad, 0.003);
         assert_eq!(r.median.ang_std_rad, 0.002);
         assert_eq!(r.worst.coverage, 0.99);
         assert_eq!(r.median.coverage, 1.0);
-        let r = summarise(true, vec![cam(0.002, 1.0), cam(0.004, 1.0)]);
+        let r = summarise(
+            KnownPoses::WithAngle,
+            vec![cam(0.002, 1.0), cam(0.004, 1.0)],
+        );
         assert!((r.median.ang_std_rad - 0.003).abs() < 1e-12);
     }
 }

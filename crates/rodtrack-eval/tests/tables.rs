@@ -3,12 +3,12 @@
 //! scored, within the accuracy issue's targets, the frames removed afterwards.
 #![allow(missing_docs, clippy::unwrap_used)]
 
-use rodtrack_eval::tables::{format_tables, run_tables};
+use rodtrack_eval::tables::{format_tables, run_tables, KnownPoses};
 
 #[test]
 fn one_table_as_built_is_scored_per_camera_within_the_targets() {
     let work = std::env::temp_dir().join(format!("rodtrack-tables-{}", std::process::id()));
-    let r = run_tables(&[1], true, &work).unwrap();
+    let r = run_tables(&[1], KnownPoses::WithAngle, &work).unwrap();
     let md = format_tables(std::slice::from_ref(&r));
     eprintln!("{md}");
     assert_eq!(r.cameras.len(), 2, "both cameras of asbuilt:1");
@@ -33,7 +33,7 @@ fn one_table_as_built_is_scored_per_camera_within_the_targets() {
             c.camera
         );
     }
-    assert!(md.contains("| yes | asbuilt:1 | 1 |"));
+    assert!(md.contains("| with angle | asbuilt:1 | 1 |"));
     assert!(
         !work.join("asbuilt-1-known").exists(),
         "the frames are removed"

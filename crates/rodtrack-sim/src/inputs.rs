@@ -74,7 +74,7 @@ impl Ctx {
                         .map(|(frame, position_mm)| KnownPose {
                             frame,
                             position_mm,
-                            angle_rad: Some(ra),
+                            angle_rad: opts.known_pose_angles.then_some(ra),
                         })
                         .collect()
                 } else {

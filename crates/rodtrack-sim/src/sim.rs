@@ -56,6 +56,9 @@ pub struct CalibOptions {
     pub points_per_rod: usize,
     /// List the known-pose frames ([`Simulation::known_pose_frames`]) in the inputs.
     pub known_poses: bool,
+    /// With [`CalibOptions::known_poses`], give each its angle; `false`: its position alone
+    /// (an operator who pushes each rod to its stops without knowing its angle there).
+    pub known_pose_angles: bool,
     /// Write the field's corners and the centre line's ends seen by the camera as `table`
     /// points (SPEC section 9).
     pub table_points: bool,
@@ -85,6 +88,7 @@ impl Default for CalibOptions {
             click_noise_px: 1.0,
             points_per_rod: 4,
             known_poses: false,
+            known_pose_angles: true,
             table_points: true,
             table_click_noise_px: 0.5,
             ball_click: true,

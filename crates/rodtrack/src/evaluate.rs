@@ -32,8 +32,8 @@ pub struct Args {
     /// Scenarios run at once (default: the number of CPUs, at most 4).
     #[arg(long)]
     pub jobs: Option<usize>,
-    /// Random tables as built (`asbuilt:1` to `asbuilt:N`, `poses` scenario, with and without
-    /// known poses) scored per camera, worst and median, into `tables.md` and `tables.json`
+    /// Random tables as built (`asbuilt:1` to `asbuilt:N`, `poses` scenario, with known poses
+    /// and their angle, with their positions alone, and without) scored per camera, worst and median, into `tables.md` and `tables.json`
     /// (default 10, 2 with --quick; 0 skips them).
     #[arg(long)]
     pub tables: Option<u64>,
@@ -86,10 +86,13 @@ pub fn run(args: Args) -> Result<()> {
     let n_tables = args.tables.unwrap_or(if args.quick { 2 } else { 10 });
     if n_tables > 0 {
         let seeds: Vec<u64> = (1..=n_tables).collect();
-        eprintln!("rodtrack evaluate: {n_tables} tables as built, with and without known poses");
+        eprintln!(
+            "rodtrack evaluate: {n_tables} tables as built, with known poses (with their angle, \
+             their position alone) and without"
+        );
         let work = args.out.join("tables-work");
         let mut tables = Vec::new();
-        for known in [true, false] {
+        for known in rodtrack_eval::tables::KnownPoses::ALL {
             tables.push(
                 rodtrack_eval::tables::run_tables(&seeds, known, &work)
                     .context("the tables as built")?,
@@ -104,10 +107,10 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("cannot write {}", json_path.display()))?;
         for t in &tables {
             println!(
-                "tables as built ({} known poses), per camera, worst / median: coverage {:.3} / \
+                "tables as built (known poses: {}), per camera, worst / median: coverage {:.3} / \
                  {:.3}, position std {:.4} / {:.4} mm, max {:.3} / {:.3} mm, angle std {:.4} / \
                  {:.4} rad, max {:.4} / {:.4} rad, {} gross",
-                if t.known_poses { "with" } else { "without" },
+                t.known_poses.label(),
                 t.worst.coverage,
                 t.median.coverage,
                 t.worst.pos_std_mm,

@@ -37,6 +37,10 @@ pub struct Args {
     /// at the start, middle and end of its travel) and list them in the calibration inputs.
     #[arg(long)]
     pub known_poses: bool,
+    /// With `--known-poses`, list each known pose's position alone, without its angle (an
+    /// operator who pushes each rod to its stops without knowing its angle there).
+    #[arg(long, requires = "known_poses")]
+    pub known_poses_without_angle: bool,
     /// The table as built: `default`, a named variation, `asbuilt:SEED` (cameras tilted,
     /// shifted and with other lenses, rods off their places, print seams; drawn from SEED),
     /// `exposure:US` (every camera's exposure, its gain lowered to keep the levels), or several
@@ -68,6 +72,7 @@ pub fn run(args: Args) -> Result<()> {
         calib: CalibOptions {
             include_opencv_model: !args.no_opencv_model,
             known_poses: args.known_poses,
+            known_pose_angles: !args.known_poses_without_angle,
             ..CalibOptions::default()
         },
         ..RecordOptions::default()

@@ -53,8 +53,19 @@ struct Score {
     wrong_ok: u64,
 }
 
-fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
-    let dir = fresh_dir(&format!("as_built_{seed}_{known_poses}"));
+/// What calibration is given besides the reference pose and the clicks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Known {
+    /// Known poses at the travel's ends with their angle.
+    WithAngle,
+    /// The same poses, their position alone.
+    PositionOnly,
+    /// None.
+    No,
+}
+
+fn run_setup(seed: u64, known: Known, frames: &str) -> Score {
+    let dir = fresh_dir(&format!("as_built_{seed}_{known:?}"));
     let d = |p: &str| dir.join(p).display().to_string();
     let setup = format!("asbuilt:{seed}");
     let seed_s = seed.to_string();
@@ -69,12 +80,27 @@ fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
         "--seed",
         &seed_s,
     ];
-    if known_poses {
-        sim.push("--known-poses");
+    match known {
+        Known::WithAngle => sim.push("--known-poses"),
+        Known::PositionOnly => sim.extend(["--known-poses", "--known-poses-without-angle"]),
+        Known::No => {}
     }
     let rec = d("rec");
     sim.extend(["--out", &rec]);
     rodtrack(&sim);
+    let inputs = std::fs::read_to_string(d("rec/cam0.json")).unwrap();
+    assert_eq!(
+        inputs.contains("known_poses"),
+        known != Known::No,
+        "setup {seed}: {known:?}"
+    );
+    let poses_with_angle = inputs.matches("\"angle_rad\"").count() > 8;
+    assert_eq!(
+        poses_with_angle,
+        known == Known::WithAngle,
+        "setup {seed}: {known:?}: {} angles in the inputs (8 references)",
+        inputs.matches("\"angle_rad\"").count()
+    );
     let calib = rodtrack(&[
         "calibrate",
         "--inputs",
@@ -84,7 +110,7 @@ fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
         "--out",
         &d("c.toml"),
     ]);
-    let model = if known_poses {
+    let model = if known != Known::No {
         "known_poses"
     } else {
         "vanishing_direction"
@@ -156,7 +182,7 @@ fn run_setup(seed: u64, known_poses: bool, frames: &str) -> Score {
 fn random_setups_with_known_poses_meet_the_targets() {
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
     for seed in [11, 12, 13] {
-        let s = run_setup(seed, true, "25");
+        let s = run_setup(seed, Known::WithAngle, "25");
         assert!(s.n > 200, "setup {seed}: only {} rows", s.n);
         assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
         assert_eq!(s.gross, 0, "setup {seed}: gross errors");
@@ -195,6 +221,31 @@ fn random_setups_with_known_poses_meet_the_targets() {
     );
 }
 
+/// Known poses without their angle (an operator who pushes the rods to their stops and does
+/// not know their angle there, as in the validation set): they carry the scale along the
+/// travel (position within the accuracy issue's targets, no gross error, full coverage); the
+/// lines run through the rods' common vanishing point. The angle's target is not met this way
+/// on every table (docs/accuracy.md): it is printed.
+#[test]
+fn random_setups_with_known_positions_alone_meet_the_position_targets() {
+    for seed in [11, 13] {
+        let s = run_setup(seed, Known::PositionOnly, "25");
+        assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
+        assert_eq!(s.gross, 0, "setup {seed}: gross errors");
+        assert_eq!(s.wrong_ok, 0, "setup {seed}: wrong rows reported ok");
+        assert!(
+            s.pos_std_mm <= 0.03 && s.pos_max_mm <= 0.15,
+            "setup {seed}: position std {} max {}",
+            s.pos_std_mm,
+            s.pos_max_mm
+        );
+        eprintln!(
+            "setup {seed}, known positions alone: angle std {:.4} rad, max {:.4} rad",
+            s.ang_std_rad, s.ang_max_rad
+        );
+    }
+}
+
 /// Without known poses the parallel rods' common direction carries the scale along the
 /// travel: no gross error, full coverage, and position within 0.25 mm over the whole travel
 /// (the affine scale of the reference pose alone is off by 1-2 mm at the travel's ends on
@@ -203,7 +254,7 @@ fn random_setups_with_known_poses_meet_the_targets() {
 #[test]
 fn random_setups_without_known_poses_use_the_rods_direction() {
     for seed in [21, 22] {
-        let s = run_setup(seed, false, "25");
+        let s = run_setup(seed, Known::No, "25");
         assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
         assert_eq!(s.gross, 0, "setup {seed}: gross errors");
         assert!(
