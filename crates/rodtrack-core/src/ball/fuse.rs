@@ -15,7 +15,9 @@
 //!   finds the ball), the fused position would jump by the cameras' disagreement (their
 //!   systematic errors). The jump, when it is within their uncertainties, is kept as an offset
 //!   that decays with time constant [`HANDOVER_S`]: the fused track moves from one camera's
-//!   frame to the other's smoothly.
+//!   frame to the other's smoothly. Not when the last fused row was `predicted` and this one
+//!   is seen: the prediction's error (a bounce no camera saw) is no camera's offset, and the
+//!   ball is where the cameras see it.
 //!
 //! No allocation per frame: the fuser holds its buffers.
 
@@ -109,7 +111,12 @@ impl BallFuser {
         let decay = |dt_s: f64| (-dt_s.max(0.0) / HANDOVER_S).exp();
         if let Some(prev) = &self.last {
             let dt = timestamp_ns.seconds_since(prev.timestamp_ns);
-            if set != self.last_set && status != BallStatus::Conflict {
+            // Only between measured rows: after predictions, the ball seen again is where the
+            // cameras see it (the predictions' error is no camera's offset).
+            if set != self.last_set
+                && status != BallStatus::Conflict
+                && !(prev.status == BallStatus::Predicted && status == BallStatus::Ok)
+            {
                 let ex = [prev.x_mm + prev.vx_mm_s * dt, prev.y_mm + prev.vy_mm_s * dt];
                 let jump = [ex[0] - mean[0], ex[1] - mean[1]];
                 let bound = AGREE_SIGMAS * sigma.hypot(prev_sigma(cams, self.last_set));
@@ -299,6 +306,49 @@ mod tests {
             cam(1, 1, 10.0, BallStatus::Ok, 0.3),
         ]);
         assert_eq!((r.status, r.x_mm), (BallStatus::Ok, 0.2));
+    }
+
+    /// A ball seen again after the cameras only predicted it (it bounced off a wall unseen,
+    /// and the predictions ran on into the wall) is where the camera that sees it says, at
+    /// once: the predictions' error is no camera's offset to hand over.
+    #[test]
+    fn a_ball_seen_again_after_predictions_is_where_the_camera_sees_it() {
+        let mut f = BallFuser::default();
+        let moving = |c: u32, frame: u64, x: f64, status: BallStatus, sigma: f64| {
+            let mut b = cam(c, frame, x, status, sigma);
+            b.row.vx_mm_s = 3000.0;
+            b
+        };
+        // Both cameras see it rolling at 3 m/s (15 mm per frame).
+        for frame in 0..5 {
+            let x = 15.0 * frame as f64;
+            f.fuse(&[
+                moving(0, frame, x, BallStatus::Ok, 0.5),
+                moving(1, frame, x + 0.3, BallStatus::Ok, 0.5),
+            ]);
+        }
+        // Hidden for two frames: both predict it on at 3 m/s.
+        for frame in 5..7 {
+            let x = 15.0 * frame as f64;
+            let r = f.fuse(&[
+                moving(0, frame, x, BallStatus::Predicted, 1.0),
+                moving(1, frame, x, BallStatus::Predicted, 1.0),
+            ]);
+            assert_eq!(r.status, BallStatus::Predicted);
+        }
+        // It bounced back within them: camera 1 sees it 7 mm short of the prediction (half
+        // of it, behind a figure: its fit's sigma 2 mm), camera 0 still predicts.
+        let seen = 15.0 * 7.0 - 7.0;
+        let r = f.fuse(&[
+            moving(0, 7, 15.0 * 7.0, BallStatus::Predicted, 1.2),
+            cam(1, 7, seen, BallStatus::Ok, 2.0),
+        ]);
+        assert_eq!(r.status, BallStatus::Ok);
+        assert!(
+            (r.x_mm - seen).abs() < 1e-9,
+            "fused at {:.3}, seen at {seen:.3}",
+            r.x_mm
+        );
     }
 
     /// A camera joining and leaving moves the fused track by less than a tenth of the
