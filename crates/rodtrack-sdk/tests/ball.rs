@@ -583,16 +583,19 @@ fn a_prediction_near_or_off_the_ball_finds_it_where_the_scan_does() {
     assert!(compared >= 8, "{compared} frames with a ball");
 }
 
-/// A ball the coarse scan of the whole field finds is found alike by the scan of at least one
-/// of its bands (the tracker scans one band per frame while it predicts a hidden ball): the
-/// same blob's cells on the same grid, so the same fit but for the last bits of the blob's
-/// centre (a band's rows counted from its own first row). The bands overlap by a ball, so
-/// that none cuts it in two. Over the ball scenario on tables as built, both cameras.
-#[test]
-fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
-    use rodtrack_core::ball::{tuning::PREDICTED_SCAN_BANDS, BallDetector};
+/// Every detection of the whole field's coarse scan over the ball scenario's first 60 frames on
+/// two tables as built, both cameras: `each(label, detector, view, frame, detection)`.
+fn for_each_whole_scan_detection(
+    mut each: impl FnMut(
+        &str,
+        &mut rodtrack_core::ball::BallDetector,
+        &rodtrack_core::FrameView,
+        usize,
+        rodtrack_core::ball::Detection,
+    ),
+) {
+    use rodtrack_core::ball::BallDetector;
     use rodtrack_core::FrameView;
-    let (mut compared, mut near_border) = (0usize, 0usize);
     for (seed, setup) in [(1, "asbuilt:1"), (2, "asbuilt:2")] {
         let frames = 60;
         let mut sim = build_simulation("ball", Some(frames), seed, false, setup).unwrap();
@@ -604,32 +607,49 @@ fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
                 let meta = sim.render(f, cam, &mut buf).unwrap();
                 let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
                     .unwrap();
-                let Some(whole) = det.detect(&view, None) else {
-                    continue;
-                };
-                let found: Vec<usize> = (0..PREDICTED_SCAN_BANDS)
-                    .filter(|&k| {
-                        det.detect_in_band(&view, None, Some((k, PREDICTED_SCAN_BANDS)))
-                            .is_some_and(|d| {
-                                (d.u_px - whole.u_px).abs() < 1e-9
-                                    && (d.v_px - whole.v_px).abs() < 1e-9
-                                    && (d.x_mm - whole.x_mm).abs() < 1e-9
-                                    && (d.y_mm - whole.y_mm).abs() < 1e-9
-                                    && d.edge_points == whole.edge_points
-                            })
-                    })
-                    .collect();
-                assert!(
-                    !found.is_empty(),
-                    "{setup} camera {cam} frame {f}: no band finds the ball at ({:.1}, {:.1}) px",
-                    whole.u_px,
-                    whole.v_px
-                );
-                compared += 1;
-                near_border += (found.len() > 1) as usize;
+                if let Some(whole) = det.detect(&view, None) {
+                    each(&format!("{setup} camera {cam}"), &mut det, &view, f, whole);
+                }
             }
         }
     }
+}
+
+/// The same detection, to the last bits of the blob's centre (a region's cells counted from its
+/// own first row and column).
+fn same_detection(a: &rodtrack_core::ball::Detection, b: &rodtrack_core::ball::Detection) -> bool {
+    (a.u_px - b.u_px).abs() < 1e-9
+        && (a.v_px - b.v_px).abs() < 1e-9
+        && (a.x_mm - b.x_mm).abs() < 1e-9
+        && (a.y_mm - b.y_mm).abs() < 1e-9
+        && a.edge_points == b.edge_points
+}
+
+/// A ball the coarse scan of the whole field finds is found alike by the scan of at least one
+/// of its bands (the tracker scans one band per frame while it predicts a hidden ball): the
+/// same blob's cells on the same grid, so the same fit but for the last bits of the blob's
+/// centre (a band's rows counted from its own first row). The bands overlap by a ball, so
+/// that none cuts it in two. Over the ball scenario on tables as built, both cameras.
+#[test]
+fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
+    use rodtrack_core::ball::tuning::PREDICTED_SCAN_BANDS;
+    let (mut compared, mut near_border) = (0usize, 0usize);
+    for_each_whole_scan_detection(|label, det, view, f, whole| {
+        let found: Vec<usize> = (0..PREDICTED_SCAN_BANDS)
+            .filter(|&k| {
+                det.detect_in_band(view, None, Some((k, PREDICTED_SCAN_BANDS)))
+                    .is_some_and(|d| same_detection(&d, &whole))
+            })
+            .collect();
+        assert!(
+            !found.is_empty(),
+            "{label} frame {f}: no band finds the ball at ({:.1}, {:.1}) px",
+            whole.u_px,
+            whole.v_px
+        );
+        compared += 1;
+        near_border += (found.len() > 1) as usize;
+    });
     eprintln!("{compared} detections, {near_border} found by two bands");
     assert!(compared > 100, "too few detections: {compared}");
 }
@@ -641,62 +661,40 @@ fn every_ball_the_whole_scan_finds_a_band_finds_alike() {
 /// tables as built, both cameras.
 #[test]
 fn every_ball_the_whole_scan_finds_a_reach_holding_it_finds_alike() {
-    use rodtrack_core::ball::{BallDetector, Reach, ScanArea};
-    use rodtrack_core::FrameView;
+    use rodtrack_core::ball::{Reach, ScanArea};
     let mut compared = 0usize;
     let (mut part_min, mut part_max) = (f64::INFINITY, 0.0f64);
-    for (seed, setup) in [(1, "asbuilt:1"), (2, "asbuilt:2")] {
-        let frames = 60;
-        let mut sim = build_simulation("ball", Some(frames), seed, false, setup).unwrap();
-        for cam in 0..sim.cameras().len() {
-            let cal = sim.calibrated_camera_with_ball(cam, seed).unwrap();
-            let mut det = BallDetector::new(&cal).unwrap().unwrap();
-            let mut buf = vec![0u8; sim.frame_bytes(cam).unwrap()];
-            for f in 0..frames {
-                let meta = sim.render(f, cam, &mut buf).unwrap();
-                let view = FrameView::new(&buf, meta.width, meta.height, meta.stride, meta.format)
-                    .unwrap();
-                let Some(whole) = det.detect(&view, None) else {
-                    continue;
-                };
-                // A frame at 200 fps at 15 m/s, and a ball's radius: the tracker's first reach.
-                let radius_mm = 75.0 + 17.5;
-                let (a, d) = (2.4 * f as f64, 0.95 * radius_mm * (f % 5) as f64 / 4.0);
-                let reach = Reach {
-                    centre_mm: [whole.x_mm + d * a.cos(), whole.y_mm + d * a.sin()],
-                    radius_mm,
-                };
-                let area = ScanArea {
-                    band: None,
-                    reach: Some(reach),
-                };
-                let (part, field) = (det.scan_quads(area), det.scan_quads(ScanArea::default()));
-                assert!(
-                    5 * part < field,
-                    "{setup} camera {cam} frame {f}: the reach covers {part} of {field} quads"
-                );
-                part_min = part_min.min(part as f64 / field as f64);
-                part_max = part_max.max(part as f64 / field as f64);
-                let found = det.detect_in_area(&view, None, area);
-                assert!(
-                    found.is_some_and(|d| {
-                        (d.u_px - whole.u_px).abs() < 1e-9
-                            && (d.v_px - whole.v_px).abs() < 1e-9
-                            && (d.x_mm - whole.x_mm).abs() < 1e-9
-                            && (d.y_mm - whole.y_mm).abs() < 1e-9
-                            && d.edge_points == whole.edge_points
-                    }),
-                    "{setup} camera {cam} frame {f}: the reach around ({:.1}, {:.1}) mm finds \
-                     {found:?}, the whole scan the ball at ({:.1}, {:.1}) mm",
-                    reach.centre_mm[0],
-                    reach.centre_mm[1],
-                    whole.x_mm,
-                    whole.y_mm
-                );
-                compared += 1;
-            }
-        }
-    }
+    for_each_whole_scan_detection(|label, det, view, f, whole| {
+        // A frame at 200 fps at 15 m/s, and a ball's radius: the tracker's first reach.
+        let radius_mm = 75.0 + 17.5;
+        let (a, d) = (2.4 * f as f64, 0.95 * radius_mm * (f % 5) as f64 / 4.0);
+        let reach = Reach {
+            centre_mm: [whole.x_mm + d * a.cos(), whole.y_mm + d * a.sin()],
+            radius_mm,
+        };
+        let area = ScanArea {
+            band: None,
+            reach: Some(reach),
+        };
+        let (part, field) = (det.scan_quads(area), det.scan_quads(ScanArea::default()));
+        assert!(
+            5 * part < field,
+            "{label} frame {f}: the reach covers {part} of {field} quads"
+        );
+        part_min = part_min.min(part as f64 / field as f64);
+        part_max = part_max.max(part as f64 / field as f64);
+        let found = det.detect_in_area(view, None, area);
+        assert!(
+            found.is_some_and(|d| same_detection(&d, &whole)),
+            "{label} frame {f}: the reach around ({:.1}, {:.1}) mm finds {found:?}, the whole \
+             scan the ball at ({:.1}, {:.1}) mm",
+            reach.centre_mm[0],
+            reach.centre_mm[1],
+            whole.x_mm,
+            whole.y_mm
+        );
+        compared += 1;
+    });
     eprintln!("{compared} detections; the reach covers {part_min:.3}-{part_max:.3} of the field");
     assert!(compared > 100, "too few detections: {compared}");
 }

@@ -10,6 +10,7 @@ use super::kernel_search::{barcode_kernel, paper_kernel_search};
 use super::known::{read_back_known_poses, Reference};
 use super::silhouette::{
     edges_at_pose, make_knots, refine_centre_line, refine_edges, KnotRange, RadiusModel,
+    SilhouetteFit,
 };
 use super::travel::{fit_along, fit_at_h, h_from_direction, AlongTravel, RodAxis};
 use crate::angle::{wrap_2pi, wrap_step_diff, wrap_steps};
@@ -278,14 +279,19 @@ pub fn calibrate_rod_with(
     // 175 mm from the reference (the line off by 0.2 px across an 11 px radius). Known poses,
     // when given, measure the line's place over the travel below (its direction stays the
     // common one).
-    if let Some(dir3) = extras.direction {
-        let s_c = silhouette
-            .as_ref()
-            .map_or(s_ref + 0.5 * marker.length_mm(), |f| f.s_mean_mm);
-        if let Some(c) = curve.toward_vanishing(dir3, along.lambda(s_c)) {
-            curve = c;
-        }
-    }
+    // The silhouettes' middle along the rod (the marker's middle without them): where the line
+    // keeps its place when turned.
+    let s_mid = |fit: &Option<SilhouetteFit>| {
+        fit.as_ref()
+            .map_or(s_ref + 0.5 * marker.length_mm(), |f| f.s_mean_mm)
+    };
+    let common = |curve: CurveModel, along: &AlongTravel, s_c: f64| match extras.direction {
+        Some(dir3) => curve
+            .toward_vanishing(dir3, along.lambda(s_c))
+            .unwrap_or(curve),
+        None => curve,
+    };
+    curve = common(curve, &along, s_mid(&silhouette));
     let mut radius_ratio = silhouette.as_ref().map_or(1.0, |f| f.radius_ratio);
     if let Some(f) = silhouette.as_ref().filter(|f| f.rms_px > 0.3) {
         warnings.push(format!(
@@ -361,14 +367,7 @@ pub fn calibrate_rod_with(
             // the rods share: each pose's silhouette is pulled by what lies beside the rod
             // there (a few tenths of a pixel), which one rod's line over its travel takes as a
             // tilt, and the rods' common direction averages over all of them.
-            if let Some(dir3) = extras.direction {
-                let s_c = at_poses
-                    .as_ref()
-                    .map_or(s_ref + 0.5 * marker.length_mm(), |f| f.s_mean_mm);
-                if let Some(c) = curve.toward_vanishing(dir3, along.lambda(s_c)) {
-                    curve = c;
-                }
-            }
+            curve = common(curve, &along, s_mid(&at_poses));
         }
     } else if let Some((h, l, gg)) = h_from_rods {
         along = AlongTravel {
