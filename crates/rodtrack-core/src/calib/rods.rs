@@ -6,7 +6,7 @@
 use super::compute::{calibrate_rod_with, RodExtras};
 use super::file::RodCalibration;
 use super::inputs::{KnownPose, RodInputs};
-use super::travel::{common_direction, line_plane};
+use super::travel::{line_plane, robust_common_direction};
 use crate::camera::CameraIntrinsics;
 use crate::frame::FrameView;
 use crate::line::fit_line_tls;
@@ -66,7 +66,7 @@ pub fn calibrate_rods(
         .filter_map(|c| rod_plane(c, k))
         .collect();
     // Three rods at least: two always meet somewhere.
-    match common_direction(&planes).filter(|_| planes.len() >= 3) {
+    match robust_common_direction(&planes).filter(|_| planes.len() >= 3) {
         Some(d) => pass(Some(d)),
         None => first,
     }

@@ -191,6 +191,41 @@ pub fn common_direction(planes: &[([f64; 3], f64)]) -> Option<[f64; 3]> {
     Some(x)
 }
 
+/// Huber's constant, in standard deviations: the residual beyond which a plane's weight falls
+/// as one over its residual (95 % efficiency under normal errors).
+const HUBER_K: f64 = 1.345;
+/// The median of absolute normal residuals times this is their standard deviation.
+const MAD_TO_SIGMA: f64 = 1.4826;
+
+/// [`common_direction`] made robust to a rod whose line is off by more than the others' (its
+/// silhouettes pulled by a figure or a shadow beside it): iteratively reweighted, each plane's
+/// residual `n . D` scaled by its weight's root (the residual over its expected error) and its
+/// weight cut by Huber's rule beyond [`HUBER_K`] standard deviations, the scale from the
+/// median absolute scaled residual. A few iterations; `None` as [`common_direction`].
+pub fn robust_common_direction(planes: &[([f64; 3], f64)]) -> Option<[f64; 3]> {
+    let mut dir = common_direction(planes)?;
+    let mut scaled = vec![0.0f64; planes.len()];
+    let mut sorted = vec![0.0f64; planes.len()];
+    let mut reweighted = planes.to_vec();
+    for _ in 0..5 {
+        for (z, (n, w)) in scaled.iter_mut().zip(planes) {
+            *z = dot(*n, dir).abs() * w.sqrt();
+        }
+        sorted.copy_from_slice(&scaled);
+        sorted.sort_by(f64::total_cmp);
+        let sigma = MAD_TO_SIGMA * sorted[sorted.len() / 2];
+        if !(sigma.is_finite() && sigma > 0.0) {
+            break;
+        }
+        let k = HUBER_K * sigma;
+        for ((rw, (_, w)), &z) in reweighted.iter_mut().zip(planes).zip(&scaled) {
+            rw.1 = if z > k { w * k / z } else { *w };
+        }
+        dir = common_direction(&reweighted)?;
+    }
+    Some(dir)
+}
+
 /// A rod's `h` from the rods' common 3-D direction `dir`, its line (normalised point `n0` at the
 /// reference position, unit direction `d`) and its scale `g` (`d lambda / d s` at the
 /// reference, normalised units per mm).
@@ -431,6 +466,16 @@ mod tests {
         let (equal, light) = (turned(1.0), turned(0.01));
         assert!(equal > 1e-4 && light < 0.1 * equal, "{equal:e} {light:e}");
         assert!(common_direction(&[(planes[0].0, 1.0), (planes[1].0, f64::NAN)]).is_none());
+        // Robust: the same off plane at the others' weight moves the plain direction by
+        // `equal`; reweighted, it counts for little.
+        let mut p = planes.clone();
+        p.push((off, 1.0));
+        let x = robust_common_direction(&p).unwrap();
+        let robust = (1.0 - dot(x, u).abs().min(1.0)).max(0.0).sqrt();
+        assert!(robust < 0.3 * equal, "{robust:e} {equal:e}");
+        // And with no plane off it is the plain direction.
+        let x = robust_common_direction(&planes).unwrap();
+        assert!((dot(x, u).abs() - 1.0).abs() < 1e-9, "{x:?}");
         for l in &lines {
             let h = h_from_direction(dir, l.0, l.1, l.2).unwrap();
             assert!(
