@@ -33,8 +33,8 @@ pub struct Args {
     #[arg(long)]
     pub jobs: Option<usize>,
     /// Random tables as built (`asbuilt:1` to `asbuilt:N`, `poses` scenario, with known poses
-    /// and their angle, with their positions alone, and without) scored per camera, worst and median, into `tables.md` and `tables.json`
-    /// (default 10, 2 with --quick; 0 skips them).
+    /// and their angle, with their positions alone, and without) scored per camera, worst and
+    /// median, into `tables.md` and `tables.json` (default 10, 2 with --quick; 0 skips them).
     #[arg(long)]
     pub tables: Option<u64>,
 }
