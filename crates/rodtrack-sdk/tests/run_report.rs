@@ -12,7 +12,8 @@ use rodtrack_sim::{
     Simulation, TrackBuilder,
 };
 use std::f64::consts::TAU;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 
 const FRAMES: usize = 110;
 /// Frames the source loses (read and thrown away): 60 ms at 200 fps.
@@ -21,17 +22,41 @@ const GAP: std::ops::Range<u64> = 40..52;
 const REANCHOR_AT: u64 = 80;
 const REANCHOR_TURNS: i64 = 7;
 
-/// A source that loses the frames of [`GAP`].
-struct Gap(Box<dyn FrameSource>);
+/// A source that loses the frames of [`GAP`], in step with the other cameras' sources: it
+/// hands out a frame only when every other camera has handed out the one [`SKEW_FRAMES`]
+/// before it (or ended). Without that, the simulator's sources run as fast as their threads
+/// do, and on a loaded machine one camera ran 28 frames ahead of the other: its re-anchoring
+/// at frame [`REANCHOR_AT`] then reached the fused filter before the gap's sets were fused,
+/// and the fused rows never showed the count unknown.
+struct Gap {
+    source: Box<dyn FrameSource>,
+    camera: usize,
+    /// Each camera's last frame handed out (`u64::MAX` once ended).
+    handed: Arc<Vec<AtomicU64>>,
+}
+
+/// How many frames a camera's source may run ahead of the others'.
+const SKEW_FRAMES: u64 = 2;
 
 impl FrameSource for Gap {
     fn info(&self) -> SourceInfo {
-        self.0.info()
+        self.source.info()
     }
     fn next_frame(&mut self, buf: &mut FrameBuffer) -> Result<Option<()>, SourceError> {
         loop {
-            let r = self.0.next_frame(buf)?;
-            if r.is_none() || !GAP.contains(&buf.meta.frame_id) {
+            let r = self.source.next_frame(buf)?;
+            if r.is_none() {
+                self.handed[self.camera].store(u64::MAX, Ordering::SeqCst);
+                return Ok(r);
+            }
+            let f = buf.meta.frame_id;
+            while self.handed.iter().enumerate().any(|(c, h)| {
+                c != self.camera && h.load(Ordering::SeqCst).saturating_add(SKEW_FRAMES) < f
+            }) {
+                std::thread::sleep(std::time::Duration::from_micros(100));
+            }
+            self.handed[self.camera].store(f, Ordering::SeqCst);
+            if !GAP.contains(&f) {
                 return Ok(r);
             }
         }
@@ -73,12 +98,18 @@ fn the_report_counts_what_the_rows_show_and_a_reanchor_reaches_every_filter() {
         .map(|c| calibrate_sim_camera(&mut sim, c, 5).unwrap().calibration)
         .collect();
     let sources = SimSource::for_simulation(&sim, Default::default()).unwrap();
+    let handed: Arc<Vec<AtomicU64>> = Arc::new((0..ncam).map(|_| AtomicU64::new(0)).collect());
     let cameras: Vec<SessionCamera> = sources
         .into_iter()
         .zip(&cals)
-        .map(|(s, cal)| SessionCamera {
+        .enumerate()
+        .map(|(camera, (s, cal))| SessionCamera {
             label: format!("camera {}", cal.index),
-            source: Box::new(Gap(Box::new(s))),
+            source: Box::new(Gap {
+                source: Box::new(s),
+                camera,
+                handed: Arc::clone(&handed),
+            }),
             pipe: CameraPipeline::new(cal, Mode::Enhanced).unwrap(),
         })
         .collect();
