@@ -112,11 +112,15 @@ impl BallFuser {
         if let Some(prev) = &self.last {
             let dt = timestamp_ns.seconds_since(prev.timestamp_ns);
             // Only between measured rows: after predictions, the ball seen again is where the
-            // cameras see it (the predictions' error is no camera's offset).
+            // cameras see it (the predictions' error is no camera's offset, and an offset left
+            // from an earlier hand-over is gone with the cameras it was between).
             if set != self.last_set
-                && status != BallStatus::Conflict
-                && !(prev.status == BallStatus::Predicted && status == BallStatus::Ok)
+                && prev.status == BallStatus::Predicted
+                && status == BallStatus::Ok
             {
+                self.offset_mm = [0.0; 2];
+                self.offset_ns = timestamp_ns;
+            } else if set != self.last_set && status != BallStatus::Conflict {
                 let ex = [prev.x_mm + prev.vx_mm_s * dt, prev.y_mm + prev.vy_mm_s * dt];
                 let jump = [ex[0] - mean[0], ex[1] - mean[1]];
                 let bound = AGREE_SIGMAS * sigma.hypot(prev_sigma(cams, self.last_set));
@@ -319,13 +323,16 @@ mod tests {
             b.row.vx_mm_s = 3000.0;
             b
         };
-        // Both cameras see it rolling at 3 m/s (15 mm per frame).
+        // Camera 0 sees it rolling at 3 m/s (15 mm per frame), then camera 1 too (0.3 mm
+        // beside it: an offset handed over).
         for frame in 0..5 {
             let x = 15.0 * frame as f64;
-            f.fuse(&[
-                moving(0, frame, x, BallStatus::Ok, 0.5),
-                moving(1, frame, x + 0.3, BallStatus::Ok, 0.5),
-            ]);
+            let one = if frame >= 2 {
+                moving(1, frame, x + 0.3, BallStatus::Ok, 0.5)
+            } else {
+                cam(1, frame, 0.0, BallStatus::Lost, f64::INFINITY)
+            };
+            f.fuse(&[moving(0, frame, x, BallStatus::Ok, 0.5), one]);
         }
         // Hidden for two frames: both predict it on at 3 m/s.
         for frame in 5..7 {
