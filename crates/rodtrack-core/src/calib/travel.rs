@@ -193,9 +193,9 @@ pub fn common_direction(planes: &[([f64; 3], f64)]) -> Option<[f64; 3]> {
 
 /// Huber's constant, in standard deviations: the residual beyond which a plane's weight falls
 /// as one over its residual (95 % efficiency under normal errors).
-const HUBER_K: f64 = 1.345;
+pub const HUBER_K: f64 = 1.345;
 /// The median of absolute normal residuals times this is their standard deviation.
-const MAD_TO_SIGMA: f64 = 1.4826;
+pub const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// [`common_direction`] made robust to a rod whose line is off by more than the others' (its
 /// silhouettes pulled by a figure or a shadow beside it): iteratively reweighted, each plane's
