@@ -49,11 +49,11 @@ impl BallDetector {
             return None;
         }
         let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        // The outline's points on a circumscribed polygon (its chords bowed out to the circle):
+        // it holds the whole disc.
+        let r = radius_mm / (std::f64::consts::PI / REACH_OUTLINE_POINTS as f64).cos();
         for i in 0..REACH_OUTLINE_POINTS {
             let a = std::f64::consts::TAU * i as f64 / REACH_OUTLINE_POINTS as f64;
-            // The outline's points, and the chords between them bowed out to the circle: a
-            // circumscribed polygon holds the whole disc.
-            let r = radius_mm / (std::f64::consts::PI / REACH_OUTLINE_POINTS as f64).cos();
             let p = [cx + r * a.cos(), cy + r * a.sin(), self.radius_mm];
             let (u, v) = self.cam.project(p)?;
             u0 = u0.min(u);
