@@ -38,10 +38,37 @@ pub(super) struct CodeCheck {
     /// Whether another reading of the high bits (the angle shifted by whole groups of 4
     /// steps) agrees with the print across the rod better than the decoded one.
     pub(super) better_reading: bool,
+    /// Set when this frame's print rules out every other reading of the high bits (see
+    /// [`EnhancedState::code_check`]): the evidence left against the decoded reading, as a
+    /// share of the whole (`code_wrong_share`): the larger of the share present of the
+    /// disagreement the likeliest other reading would force on it (each reading taken in the
+    /// bit space where least of it is present), and the paper seen as ink, which no light
+    /// explains. `None` when the other readings were not compared or one of them is not
+    /// ruled out.
+    pub(super) wrong_evidence: Option<f64>,
 }
 
 /// The most groups of 4 Gray steps a code is checked over (a 8-bit code).
 const MAX_GROUPS: usize = 64;
+
+/// The check's counts across the rod, for the decoded reading and, when compared, every
+/// reading of the high bits (see [`EnhancedState::code_check`]).
+struct Tally {
+    /// The decoded reading's share of disagreeing samples, worst bit space.
+    worst: f64,
+    /// The decoded reading's share of samples where it expects paper and ink is seen (what
+    /// no light explains), worst bit space.
+    dark: f64,
+    /// Per reading (group shift): checked samples and disagreeing ones, over all bit spaces.
+    group_n: [u32; MAX_GROUPS],
+    group_wrong: [u32; MAX_GROUPS],
+    /// Per other reading: the least share, over its bit spaces, of the disagreement it would
+    /// force on the decoded reading were it the true one that is present.
+    evidence: [f64; MAX_GROUPS],
+    /// Per other reading: whether some bit space shows ink where its print is paper on at
+    /// least `code_wrong_share` of its samples.
+    ruled_out: [bool; MAX_GROUPS],
+}
 
 impl EnhancedState {
     /// Whether the angle `theta` (Gray steps of a `steps`-step code) continues the last ok
@@ -75,6 +102,7 @@ impl EnhancedState {
                 theta,
                 worst_share: 0.0,
                 better_reading: false,
+                wrong_evidence: None,
             };
         }
         // The print coordinate grows with the sample angle across the rod as the phase does.
@@ -92,17 +120,37 @@ impl EnhancedState {
         // decoded one (group shift 0) and the others, each shifted by whole groups of 4 steps.
         // Over all bit spaces, the share of checked samples each disagrees with.
         // `groups` readings counted: the decoded one alone, or every one.
+        //
+        // When every reading is counted, also the evidence for and against each other
+        // reading `g` being the true one. Where the decoded reading expects ink and `g`'s
+        // print is paper, the camera must see paper (or glare: light cannot turn paper into
+        // ink) if `g` is true, and the decoded reading then disagrees there: `forced`. Of
+        // those samples, the ones where the decoded reading's ink is not seen are `present`;
+        // the others show ink where `g` has paper, which no light explains. A bit space where
+        // those are at least `code_wrong_share` of its samples (the least share of evidence
+        // the code's geometry guarantees against any wrong reading) rules `g` out, as that
+        // share of evidence rules out the decoded reading.
         let tally = |groups: usize| {
-            let mut group_n = [0u32; MAX_GROUPS];
-            let mut group_wrong = [0u32; MAX_GROUPS];
-            let mut worst = 0.0f64;
+            let mut t = Tally {
+                worst: 0.0,
+                dark: 0.0,
+                group_n: [0; MAX_GROUPS],
+                group_wrong: [0; MAX_GROUPS],
+                evidence: [1.0; MAX_GROUPS],
+                ruled_out: [false; MAX_GROUPS],
+            };
             // Bit space 0 repeats every group of 4 steps: it tells no group from another (and the
             // phase's fit already holds it to the stripes).
             for k in 1..m.bits() {
                 let lp = self.knots.at(position + m.bit_space_centre_mm(k));
                 let (e, rad) = (ca.offset_px, lp.radius_px * ca.radius_ratio);
                 let off = gray_read.offsets[k as usize];
-                let (mut n, mut wrong) = (0u32, 0u32);
+                let (mut n, mut wrong, mut dark) = (0u32, 0u32, 0u32);
+                // Per other reading: the decoded reading's checked samples where it expects
+                // ink and that reading's print is paper.
+                let mut forced = [0u32; MAX_GROUPS];
+                // Of those, the ones where the decoded reading's ink is not seen.
+                let mut present = [0u32; MAX_GROUPS];
                 for j in (0..self.phase_delta.len()).step_by(CODE_CHECK_EVERY) {
                     if self.phase_delta[j].0.abs() > CODE_CHECK_MAX_DELTA_DEG.to_radians() {
                         continue;
@@ -114,9 +162,21 @@ impl EnhancedState {
                     let v = frame.luma_bilinear(px as f32, py as f32) as f64;
                     let span = (self.white[j] - self.black[j]).max(min_span);
                     let r = (v - self.black[j]) / span - off;
-                    for (g, (gn, gw)) in group_n
+                    // The decoded reading's ink here, clear of an edge, and whether it is not
+                    // seen (needed only when the other readings are compared).
+                    let (decoded_ink, decoded_wrong) = if groups > 1 {
+                        let x0 = theta + to_steps * surface[j];
+                        let i = ink(k, x0)
+                            && ink(k, x0 - CODE_CHECK_EDGE_STEPS)
+                            && ink(k, x0 + CODE_CHECK_EDGE_STEPS);
+                        (i, i && r >= 0.5)
+                    } else {
+                        (false, false)
+                    };
+                    for (g, (gn, gw)) in t
+                        .group_n
                         .iter_mut()
-                        .zip(group_wrong.iter_mut())
+                        .zip(t.group_wrong.iter_mut())
                         .take(groups)
                         .enumerate()
                     {
@@ -139,34 +199,55 @@ impl EnhancedState {
                         };
                         *gn += 1;
                         *gw += (!agrees) as u32;
+                        if g > 0 && decoded_ink && !expect {
+                            forced[g] += 1;
+                            present[g] += decoded_wrong as u32;
+                        }
                         if g == 0 {
                             n += 1;
                             wrong += (!agrees) as u32;
+                            dark += (!expect && r < 0.5) as u32;
                         }
                     }
                 }
                 if n > 0 {
-                    worst = worst.max(wrong as f64 / n as f64);
+                    t.worst = t.worst.max(wrong as f64 / n as f64);
+                    t.dark = t.dark.max(dark as f64 / n as f64);
+                    for g in 1..groups {
+                        let (f, p) = (forced[g], present[g]);
+                        if f > 0 {
+                            t.evidence[g] = t.evidence[g].min(p as f64 / f as f64);
+                            t.ruled_out[g] |= (f - p) as f64 >= self.code_wrong_share * n as f64;
+                        }
+                    }
                 }
             }
-            (worst, group_n, group_wrong)
+            t
         };
         // The decoded reading first; the others only when it disagrees with the print beyond
         // what noise makes of a true reading (and not with most of it, refused anyway).
-        let (worst, mut group_n, mut group_wrong) = tally(1);
+        let mut t = tally(1);
         let mut groups = 1;
-        if worst > 0.5 * self.code_wrong_share && worst <= 0.5 {
+        let mut wrong_evidence = None;
+        if t.worst > 0.5 * self.code_wrong_share && t.worst <= 0.5 {
             groups = ((steps / 4) as usize).clamp(1, MAX_GROUPS);
-            (_, group_n, group_wrong) = tally(groups);
+            t = tally(groups);
+            if groups > 1 && t.ruled_out[1..groups].iter().all(|&r| r) {
+                let likeliest = t.evidence[1..groups].iter().copied().fold(0.0, f64::max);
+                // What no light explains stays evidence against the reading: paper seen as
+                // ink (a hand, a shadow), as a share of the bound.
+                wrong_evidence = Some(likeliest.max(t.dark / self.code_wrong_share));
+            }
         }
-        let share = |g: usize| group_wrong[g] as f64 / group_n[g].max(1) as f64;
+        let share = |g: usize| t.group_wrong[g] as f64 / t.group_n[g].max(1) as f64;
         let decoded = share(0);
-        let better_reading = (1..groups).any(|g| group_n[g] > 0 && share(g) < decoded);
+        let better_reading = (1..groups).any(|g| t.group_n[g] > 0 && share(g) < decoded);
         CodeCheck {
             frac4,
             theta,
-            worst_share: worst,
+            worst_share: t.worst,
             better_reading,
+            wrong_evidence,
         }
     }
 }

@@ -98,10 +98,22 @@ impl EnhancedState {
         // The evidence against the reading's high bits: this frame's check across the rod,
         // or, when the reading continues the last ok frame's slowly (the check is skipped,
         // see `agree`), that of the check that started it.
+        //
+        // Where this frame's print has ruled out every other reading of the high bits (each
+        // would leave ink seen where its print is paper, see `agree`), the evidence of a
+        // wrong code is what is present of the disagreement the likeliest of them would force
+        // on the decoded reading, or the paper seen as ink if more: disagreement that light
+        // explains (a glint on the print beside the facing line) no longer counts. The
+        // geometric bound `code_wrong_share` is what any wrong reading must show; this
+        // frame's comparison what each one would show here.
+        let frame_share = match check.wrong_evidence {
+            Some(e) => check.worst_share.min(e * self.code_wrong_share),
+            None => check.worst_share,
+        };
         let code_share = if self.continues_slowly(theta, steps as f64) {
-            self.reading_code_share.max(check.worst_share)
+            self.reading_code_share.max(frame_share)
         } else {
-            check.worst_share
+            frame_share
         };
         // A reading that disagrees with the print as much as the least wrong reading of the
         // high bits would (`code_wrong_share`, from the code's geometry alone) carries the
