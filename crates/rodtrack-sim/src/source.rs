@@ -433,6 +433,7 @@ impl FrameSource for SimSource {
         // just before, so that the preparation does not compete for the CPU with the
         // tracking of the previous frame.
         let due = self.realtime.then(|| {
+            least_timer_slack();
             if let Some(t0) = self.trigger_unix_ns {
                 // The shared clock keeps the cameras in step: no gate between them.
                 let due_unix = t0 + (tick as f64 * 1e9 / self.fps).round() as u64;
@@ -511,6 +512,21 @@ fn unix_now_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// Lets the calling thread's sleeps end as close to their deadline as the kernel can: a
+/// camera delivers its frame at its trigger, and Linux lets a sleeping thread wake up to its
+/// timer slack late (50 us by default), on top of the scheduler's own delay (measured on a
+/// 2-core virtual machine, 4.7 ms sleeps: 102 us late at the median with the default slack,
+/// 40 us with the least). Elsewhere a no-op.
+fn least_timer_slack() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: `prctl(PR_SET_TIMERSLACK, n)` takes plain integers and changes only the
+    // calling thread's timer slack; it touches no memory of ours.
+    #[allow(unsafe_code)]
+    unsafe {
+        libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong);
+    }
 }
 
 fn sleep_until(t: Instant) {
