@@ -9,21 +9,72 @@
 
 mod robust;
 
-use robust::{describe, glare_on_rod, run, table, RunOptions};
+use robust::{describe, glare_on_rod, run, table, RunOptions, GROSS_ANGLE_RAD, GROSS_POSITION_MM};
 use rodtrack_sim::rng::Rng;
-use rodtrack_sim::{Lighting, Scenario, TrackBuilder};
+use rodtrack_sim::{Lighting, Scenario, SceneConfig, SimCamera, TrackBuilder};
+
+/// A still table as built (`asbuilt:SEED`) with one rod and one camera drawn from `salt`'s
+/// random stream, which the case goes on drawing from.
+struct StillTable {
+    setup: String,
+    scene: SceneConfig,
+    cameras: Vec<SimCamera>,
+    scenario: Scenario,
+    rng: Rng,
+    rod: usize,
+    cam: usize,
+}
+
+fn still_table(seed: u64, salt: u64, frames: usize) -> StillTable {
+    let setup = format!("asbuilt:{seed}");
+    let (scene, cameras) = table(&setup);
+    let mut rng = Rng::new(seed ^ salt);
+    let scenario = Scenario::by_name("static", &scene, seed)
+        .unwrap()
+        .with_frames(frames);
+    let rod = rng.below(scene.rods.len() as u64) as usize;
+    let cam = rng.below(cameras.len() as u64) as usize;
+    StillTable {
+        setup,
+        scene,
+        cameras,
+        scenario,
+        rng,
+        rod,
+        cam,
+    }
+}
+
+/// `case` on each table of the comma-separated seeds in `var` (1 to 8 without it), the
+/// tables in parallel (each one is independent and single-threaded).
+fn each_table<T: Send>(var: &str, case: fn(u64) -> T) -> Vec<T> {
+    let seeds: Vec<u64> = match std::env::var(var) {
+        Ok(v) => v.split(',').map(|s| s.parse().unwrap()).collect(),
+        Err(_) => (1..=8).collect(),
+    };
+    std::thread::scope(|scope| {
+        let runs: Vec<_> = seeds
+            .into_iter()
+            .map(|seed| scope.spawn(move || case(seed)))
+            .collect();
+        runs.into_iter()
+            .map(|r| r.join().expect("a table's thread panicked"))
+            .collect()
+    })
+}
 
 /// One static table with one glare: the outcome's description, and the gross rows of the
 /// glared camera (raw and filtered).
 fn glare_case(seed: u64, from_start: bool) -> (String, usize, usize, f64) {
-    let setup = format!("asbuilt:{seed}");
-    let (scene, cameras) = table(&setup);
-    let mut rng = Rng::new(seed ^ 0x6A1A_4E00);
-    let mut sc = Scenario::by_name("static", &scene, seed)
-        .unwrap()
-        .with_frames(24);
-    let rod = rng.below(scene.rods.len() as u64) as usize;
-    let cam = rng.below(cameras.len() as u64) as usize;
+    let StillTable {
+        setup,
+        scene,
+        cameras,
+        scenario: mut sc,
+        mut rng,
+        rod,
+        cam,
+    } = still_table(seed, 0x6A1A_4E00, 24);
     let spec = &scene.marker;
     let g0 = spec.gray_code.start_mm;
     let g1 = g0 + spec.gray_code.bits as f64 * spec.gray_code.bit_space_mm;
@@ -75,21 +126,7 @@ fn glare_case(seed: u64, from_start: bool) -> (String, usize, usize, f64) {
 #[test]
 fn glare_on_a_gray_code_is_never_read_confidently_wrong() {
     let mut gross = 0;
-    let seeds: Vec<u64> = match std::env::var("GLARE_SEEDS") {
-        Ok(v) => v.split(',').map(|s| s.parse().unwrap()).collect(),
-        Err(_) => (1..=8).collect(),
-    };
-    // The tables run in parallel (each one is independent and single-threaded).
-    let cases: Vec<_> = std::thread::scope(|scope| {
-        let runs: Vec<_> = seeds
-            .into_iter()
-            .map(|seed| scope.spawn(move || glare_case(seed, false)))
-            .collect();
-        runs.into_iter()
-            .map(|r| r.join().expect("a glare table's thread panicked"))
-            .collect()
-    });
-    for (text, raw, filtered, _) in cases {
+    for (text, raw, filtered, _) in each_table("GLARE_SEEDS", |seed| glare_case(seed, false)) {
         eprint!("{text}");
         gross += raw + filtered;
     }
@@ -110,14 +147,15 @@ fn glare_on_a_gray_code_is_never_read_confidently_wrong() {
 /// away), and since light can make ink look like paper, nothing in the frame rules that
 /// reading out: refused, rightly.
 fn glint_case(seed: u64) -> (String, usize, usize, usize) {
-    let setup = format!("asbuilt:{seed}");
-    let (scene, cameras) = table(&setup);
-    let mut rng = Rng::new(seed ^ 0x611A_7000);
-    let mut sc = Scenario::by_name("static", &scene, seed)
-        .unwrap()
-        .with_frames(8);
-    let rod = rng.below(scene.rods.len() as u64) as usize;
-    let cam = rng.below(cameras.len() as u64) as usize;
+    let StillTable {
+        setup,
+        scene,
+        cameras,
+        scenario: mut sc,
+        mut rng,
+        rod,
+        cam,
+    } = still_table(seed, 0x611A_7000, 8);
     let spec = &scene.marker;
     let bit = 1 + rng.below(spec.gray_code.bits as u64 - 1);
     let u = spec.gray_code.start_mm + (bit as f64 + 0.5) * spec.gray_code.bit_space_mm;
@@ -165,7 +203,7 @@ fn glint_case(seed: u64) -> (String, usize, usize, usize) {
             continue;
         }
         let is_ok = m.status == rodtrack_core::Status::Ok;
-        gross += (is_ok && (*ea > 0.2 || *ep > 5.0)) as usize;
+        gross += (is_ok && (*ea > GROSS_ANGLE_RAD || *ep > GROSS_POSITION_MM)) as usize;
         if *visible {
             vis += 1;
             ok += is_ok as usize;
@@ -185,21 +223,8 @@ fn glint_case(seed: u64) -> (String, usize, usize, usize) {
 
 #[test]
 fn a_glint_beside_the_facing_line_does_not_lock_a_right_reading_out() {
-    let seeds: Vec<u64> = match std::env::var("GLINT_SEEDS") {
-        Ok(v) => v.split(',').map(|s| s.parse().unwrap()).collect(),
-        Err(_) => (1..=8).collect(),
-    };
-    let cases: Vec<_> = std::thread::scope(|scope| {
-        let runs: Vec<_> = seeds
-            .into_iter()
-            .map(|seed| scope.spawn(move || glint_case(seed)))
-            .collect();
-        runs.into_iter()
-            .map(|r| r.join().expect("a glint table's thread panicked"))
-            .collect()
-    });
     let (mut vis, mut ok, mut gross) = (0, 0, 0);
-    for (text, v, o, g) in cases {
+    for (text, v, o, g) in each_table("GLINT_SEEDS", glint_case) {
         eprint!("{text}");
         vis += v;
         ok += o;
