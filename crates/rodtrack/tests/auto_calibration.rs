@@ -335,11 +335,16 @@ fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
         "--out",
         &d("noisy.toml"),
     ]);
-    assert_eq!(
-        out.matches("doubtful reference").count(),
-        7,
-        "one warning per rod: {out}"
-    );
+    // Each rod is warned about, or left out when its reference reads as refused (its angle's
+    // zero would be read from a reading the tracker does not trust).
+    let warned = out
+        .lines()
+        .filter(|l| {
+            l.contains("doubtful reference")
+                || (l.contains("not calibrated") && l.contains("the reference frame reads as"))
+        })
+        .count();
+    assert_eq!(warned, 7, "one warning per rod: {out}");
     // The first 10 frames (1.8 s): every rod covered a third of its travel or less.
     let out = ok(&[
         "calibrate",
@@ -353,11 +358,16 @@ fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
         "--out",
         &d("partial.toml"),
     ]);
-    assert_eq!(
-        out.matches("spread them along the whole path").count(),
-        7,
-        "one warning per rod: {out}"
-    );
+    // Each rod is warned about, or left out when its reference reads as refused with the
+    // line its few path points give.
+    let warned = out
+        .lines()
+        .filter(|l| {
+            l.contains("spread them along the whole path")
+                || (l.contains("not calibrated") && l.contains("path points follow the rod"))
+        })
+        .count();
+    assert_eq!(warned, 7, "one warning per rod: {out}");
     let fail = |args: &[&str], want: &[&str]| {
         let o = rodtrack(args);
         assert!(!o.status.success(), "rodtrack {} succeeded", args.join(" "));

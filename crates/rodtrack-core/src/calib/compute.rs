@@ -456,11 +456,19 @@ pub fn calibrate_rod_with(
     // Enhanced offsets from the reference pose.
     let mut tr = RodTracker::new(&cal, frame.width(), frame.height(), Mode::Enhanced)?;
     let r = tr.process(frame)?;
+    // The angle's zero is the print coordinate read here: a reading the tracker would refuse
+    // (the Gray code's high bits fooled by a glare, a shadow or a smudge on the marker, a hand
+    // over it, or a centre line off the rod) would put every angle of the rod off by whole
+    // Gray steps, confidently, or leave a rod that is refused in every frame. Fail the rod
+    // instead, saying what to fix.
     if r.status != crate::Status::Ok {
-        warnings.push(format!(
-            "the reference frame reads as {} in enhanced mode: check the reference",
-            r.status
-        ));
+        return Err(fail(format!(
+            "the reference frame reads as {} in enhanced mode ({}): the angle's zero cannot be \
+             read from it; check that the marker is clean, evenly lit and wholly in view there \
+             (no glare, shadow, smudge or hand on it) and that the path points follow the rod \
+             over its whole travel, then capture the reference frame again",
+            r.status, r.reason
+        )));
     }
     let dpos = r.position_mm - s_ref;
     if dpos.abs() < 5.0 {
