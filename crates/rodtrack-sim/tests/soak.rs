@@ -123,7 +123,7 @@ fn soak_table(seed: u64, frames: usize) -> Vec<String> {
         ..Default::default()
     };
     let t = std::time::Instant::now();
-    let o = run(scene, cameras, sc, seed, &opts);
+    let o = run(scene, cameras, sc, seed, &opts).unwrap();
     let name = format!(
         "{setup} ({frames} frames): spin rod {spin_rod} {:.0} rpm, glare camera {cam} near \
          rod {near} sigma {sigma:.0} px peak {peak:.0} DN, {} dropped, {:.1?}",

@@ -106,15 +106,23 @@ pub struct RunOptions {
     pub max_rate_rad_s: f64,
 }
 
+/// A camera whose calibration refused the table (a rod's reference frame read as not `ok`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refused {
+    pub camera: usize,
+    pub message: String,
+}
+
 /// Calibrates every camera on its reference frame (clicks drawn from `seed`), then tracks
-/// every frame of `scenario` and scores each row against the truth.
+/// every frame of `scenario` and scores each row against the truth. A camera whose
+/// calibration fails stops the run with its message.
 pub fn run(
     scene: SceneConfig,
     cameras: Vec<SimCamera>,
     scenario: Scenario,
     seed: u64,
     opts: &RunOptions,
-) -> Outcome {
+) -> Result<Outcome, Refused> {
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene, cameras, scenario, RenderMode::Fast)
         .unwrap()
@@ -123,7 +131,12 @@ pub fn run(
     let mut out = Outcome::default();
     for c in 0..n_cam {
         let t1 = std::time::Instant::now();
-        let cal = calibrate_sim_camera(&mut sim, c, seed).unwrap().calibration;
+        let cal = calibrate_sim_camera(&mut sim, c, seed)
+            .map_err(|e| Refused {
+                camera: c,
+                message: e.to_string(),
+            })?
+            .calibration;
         if opts.timing {
             eprintln!(
                 "sim ready {:?}, camera {c} calibrated in {:?}",
@@ -222,7 +235,27 @@ pub fn run(
         out.filtered.push(fil_t);
         out.rows.push(rows_kept);
     }
-    out
+    Ok(out)
+}
+
+/// The first camera of a setup whose calibration refuses the table as built, without any
+/// addition (glare, a spot) to its scenario.
+pub fn refused_as_built(setup: &str, seed: u64) -> Option<Refused> {
+    let (scene, cameras) = table(setup);
+    let sc = Scenario::by_name("static", &scene, seed)
+        .unwrap()
+        .with_frames(1);
+    let mut sim = Simulation::new(scene, cameras, sc, RenderMode::Fast)
+        .unwrap()
+        .with_seed(seed);
+    (0..sim.cameras().len()).find_map(|c| {
+        calibrate_sim_camera(&mut sim, c, seed)
+            .err()
+            .map(|e| Refused {
+                camera: c,
+                message: e.to_string(),
+            })
+    })
 }
 
 /// One line per camera and kind, for the test's output.
