@@ -481,7 +481,7 @@ pub fn calibrate_rod_with(
     // over it, or a centre line off the rod) would put every angle of the rod off by whole
     // Gray steps, confidently, or leave a rod that is refused in every frame. Fail the rod
     // instead, saying what to fix.
-    if r.status != crate::Status::Ok && std::env::var("CAL_KEEP").is_err() {
+    if r.status != crate::Status::Ok {
         return Err(fail(format!(
             "the reference frame reads as {} in enhanced mode ({}): the angle's zero cannot be \
              read from it; check that the marker is clean, evenly lit and wholly in view there \
