@@ -10,8 +10,8 @@
 mod robust;
 
 use robust::{
-    describe, glare_on_rod, refused_as_built, run, table, Refused, RunOptions, GROSS_ANGLE_RAD,
-    GROSS_POSITION_MM,
+    describe, glare_on_rod, refused_as_built, run, table, Outcome, Refused, RunOptions,
+    GROSS_ANGLE_RAD, GROSS_POSITION_MM,
 };
 use rodtrack_sim::rng::Rng;
 use rodtrack_sim::{Lighting, Scenario, SceneConfig, SimCamera, TrackBuilder};
@@ -127,6 +127,31 @@ fn spot_from_the_start(
     sc.glare = g.build();
 }
 
+/// A high bit space of the Gray code (1 and up) drawn from `rng`, and its centre along the
+/// marker, mm.
+fn high_bit_space(spec: &rodtrack_core::marker::MarkerSpec, rng: &mut Rng) -> (u64, f64) {
+    let bit = 1 + rng.below(spec.gray_code.bits as u64 - 1);
+    let u = spec.gray_code.start_mm + (bit as f64 + 0.5) * spec.gray_code.bit_space_mm;
+    (bit, u)
+}
+
+/// Prints camera `cam`'s kept raw rows of rod `rod` with the tracker's diagnostics (the rows
+/// are kept only when the run was asked to).
+fn print_rows(o: &Outcome, cam: usize, rod: usize) {
+    for (m, vis, ea, ep, r) in o.rows[cam].iter().filter(|r| r.0.rod as usize == rod) {
+        eprintln!(
+            "f{} {} vis {vis} ea {ea:.3} ep {ep:.3} q {:.2} {} disagree {:.3} gray {} theta {:.2}",
+            m.frame,
+            m.status.name(),
+            m.quality,
+            r.reason,
+            r.code_disagreement,
+            r.gray_step,
+            r.theta_steps
+        );
+    }
+}
+
 /// A case's calibration refused: `None` when the table as built, without the case's addition,
 /// is refused the same way (the case is left out, said), else the refusal's description.
 fn refusal(name: &str, setup: &str, seed: u64, r: &Refused) -> Option<String> {
@@ -191,14 +216,7 @@ fn glare_case(seed: u64, from_start: bool) -> (String, usize, usize, f64) {
     };
     if opts.keep_rows {
         eprintln!("run {:?}", t.elapsed());
-        for (m, vis, ea, ep, r) in &o.rows[cam] {
-            if m.rod as usize == rod {
-                eprintln!(
-                    "f{} {} vis {vis} ea {ea:.3} ep {ep:.3} q {:.2} {} disagree {:.2} gray {} theta {:.2}",
-                    m.frame, m.status.name(), m.quality, r.reason, r.code_disagreement, r.gray_step, r.theta_steps
-                );
-            }
-        }
+        print_rows(&o, cam, rod);
     }
     let text = describe(&name, &o);
     let cov = o.raw[cam].coverage();
@@ -244,8 +262,7 @@ fn glint_case(seed: u64) -> (String, usize, usize, usize) {
         cam,
     } = still_table(seed, 0x611A_7000, 8);
     let spec = &scene.marker;
-    let bit = 1 + rng.below(spec.gray_code.bits as u64 - 1);
-    let u = spec.gray_code.start_mm + (bit as f64 + 0.5) * spec.gray_code.bit_space_mm;
+    let (bit, u) = high_bit_space(spec, &mut rng);
     let side = if rng.below(2) == 0 { -1.0 } else { 1.0 };
     let phi = side * rng.range(45.0, 60.0).to_radians();
     let sigma = rng.range(1.0, 2.0);
@@ -325,8 +342,7 @@ fn dark_spot_case(seed: u64) -> (String, usize, bool) {
         cam,
     } = still_table(seed, 0xDA4C_0000, 12);
     let spec = &scene.marker;
-    let bit = 1 + rng.below(spec.gray_code.bits as u64 - 1);
-    let u = spec.gray_code.start_mm + (bit as f64 + 0.5) * spec.gray_code.bit_space_mm;
+    let (bit, u) = high_bit_space(spec, &mut rng);
     let phi = rng.range(-15.0, 15.0).to_radians();
     let sigma = rng.range(2.0, 5.0);
     let peak = -rng.range(150.0, 250.0);
@@ -358,14 +374,7 @@ fn dark_spot_case(seed: u64) -> (String, usize, bool) {
             };
         }
     };
-    for (m, vis, ea, ep, r) in &o.rows[cam] {
-        if m.rod as usize == rod {
-            eprintln!(
-                "f{} {} vis {vis} ea {ea:.3} ep {ep:.3} q {:.2} {} disagree {:.3} gray {} theta {:.2}",
-                m.frame, m.status.name(), m.quality, r.reason, r.code_disagreement, r.gray_step, r.theta_steps
-            );
-        }
-    }
+    print_rows(&o, cam, rod);
     (
         describe(&name, &o),
         o.raw[cam].gross.len() + o.filtered[cam].gross.len(),

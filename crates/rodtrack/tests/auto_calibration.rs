@@ -337,13 +337,7 @@ fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
     ]);
     // Each rod is warned about, or left out when its reference reads as refused (its angle's
     // zero would be read from a reading the tracker does not trust).
-    let warned = out
-        .lines()
-        .filter(|l| {
-            l.contains("doubtful reference")
-                || (l.contains("not calibrated") && l.contains("the reference frame reads as"))
-        })
-        .count();
+    let warned = rods_reported(&out, "doubtful reference", "the reference frame reads as");
     assert_eq!(warned, 7, "one warning per rod: {out}");
     // The first 10 frames (1.8 s): every rod covered a third of its travel or less.
     let out = ok(&[
@@ -360,13 +354,11 @@ fn partial_sweeps_and_bad_input_are_reported(dir: &Path) {
     ]);
     // Each rod is warned about, or left out when its reference reads as refused with the
     // line its few path points give.
-    let warned = out
-        .lines()
-        .filter(|l| {
-            l.contains("spread them along the whole path")
-                || (l.contains("not calibrated") && l.contains("path points follow the rod"))
-        })
-        .count();
+    let warned = rods_reported(
+        &out,
+        "spread them along the whole path",
+        "path points follow the rod",
+    );
     assert_eq!(warned, 7, "one warning per rod: {out}");
     let fail = |args: &[&str], want: &[&str]| {
         let o = rodtrack(args);
@@ -522,4 +514,12 @@ fn opencv_model_files_in_the_inputs(dir: &Path) {
         err.contains("missing.json") && err.contains("missing.yml"),
         "{err}"
     );
+}
+
+/// The lines of `out` that warn about a rod (`warning`), or report it not calibrated for a
+/// reason holding `refusal`.
+fn rods_reported(out: &str, warning: &str, refusal: &str) -> usize {
+    out.lines()
+        .filter(|l| l.contains(warning) || (l.contains("not calibrated") && l.contains(refusal)))
+        .count()
 }
