@@ -13,8 +13,9 @@ genicam_pkgs=(libaravis-dev libusb-1.0-0-dev aravis-tools aravis-tools-cli pkg-c
 marker_pkgs=(poppler-utils)
 # The Python package's build and tests, and the ROS 2 bag check (rosbags).
 python_venv_pkgs=(maturin pytest numpy rosbags)
-# The Python subscriber of the camera network.
-zenoh_venv_pkgs=("eclipse-zenoh==1.10.2")
+# The Python subscriber of the camera network, and the ROS 2 over rmw_zenoh check (rosbags for
+# the CDR and the type hash, xxhash for the publisher's GID).
+zenoh_venv_pkgs=("eclipse-zenoh==1.10.2" rosbags xxhash)
 
 # apt_install PKG...: installs the packages (no recommends) unless all are installed.
 apt_install() {

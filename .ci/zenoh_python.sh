@@ -5,7 +5,9 @@
 # fusion node listening on an explicit tcp/127.0.0.1 endpoint and two camera nodes on
 # real-time sim:// sources connecting to it, multicast scouting off. The subscribers run for a
 # bounded time; each one's output must hold every rod, finite positions and increasing frame
-# ids. Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
+# ids. The fusion node also publishes for ROS 2 over rmw_zenoh (--ros2-domain 0), checked by
+# .ci/ros2_zenoh.py against rmw_zenoh's rules (key expression, attachment, liveliness tokens,
+# CDR through rosbags). Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
 # target/release/rodtrack) and the example built beside it (RODTRACK_EXAMPLE, default
 # target/release/examples/fused_subscriber); started by .ci/zenoh.sh.
 set -euo pipefail
@@ -33,7 +35,7 @@ trap cleanup EXIT
 port=$("$venv/bin/python" -c "import socket; s=socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1])")
 endpoint="tcp/127.0.0.1:$port"
 
-"$bin" fuse --calib "$tmp/c.toml" --subscribe zenoh --publish zenoh \
+"$bin" fuse --calib "$tmp/c.toml" --subscribe zenoh --publish zenoh --ros2-domain 0 \
     --zenoh-listen "$endpoint" --out "$tmp/fused.csv" 2>"$tmp/fuse.err" &
 pids+=($!)
 # The cameras' shared trigger: frame 0 a few seconds ahead (each node prerenders its frames
@@ -49,9 +51,13 @@ done
 logs() { tail -n 5 "$tmp/sub.txt" "$tmp/sub_rs.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
 timeout 30 "$example" "$endpoint" 8 >"$tmp/sub_rs.txt" 2>&1 &
 rust_sub=$!
+timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 0 default 8 >"$tmp/ros2.txt" 2>&1 &
+ros2_sub=$!
 timeout 30 "$venv/bin/python" python/examples/zenoh_subscriber.py "$endpoint" 8 >"$tmp/sub.txt" \
   || { echo "the Python subscriber failed"; logs; exit 1; }
 wait "$rust_sub" || { echo "the Rust subscriber failed"; logs; exit 1; }
+wait "$ros2_sub" || { echo "the ROS 2 (rmw_zenoh) check failed"; cat "$tmp/ros2.txt"; logs; exit 1; }
+cat "$tmp/ros2.txt"
 
 for who in python:sub.txt rust:sub_rs.txt; do
 "$venv/bin/python" - "${who%%:*}" "$tmp/${who#*:}" <<'PY' || { logs; exit 1; }

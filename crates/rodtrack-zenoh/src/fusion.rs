@@ -18,6 +18,7 @@
 
 use crate::layout::{camera_bit, decode, Header, Kind, Message};
 use crate::net::{camera_key, fused_key, NetworkOptions, RowPublisher, WireFormat};
+use crate::ros2::{Ros2Names, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_core::{CameraFilter, CameraId, Measurement, Mode, PixelFormat, SetFusion};
@@ -61,6 +62,9 @@ pub struct FusionOptions {
     pub loss_periods: f64,
     /// Publish the fused rows on `rodtrack/<table>/fused/rows`.
     pub publish: bool,
+    /// Also publish them for ROS 2 over rmw_zenoh in this domain, as
+    /// `sensor_msgs/msg/JointState` on `/rodtrack/<table>/joint_states` ([`crate::ros2`]).
+    pub ros2_domain: Option<u32>,
 }
 
 impl Default for FusionOptions {
@@ -70,6 +74,7 @@ impl Default for FusionOptions {
             grouping: SetGrouping::FrameId,
             loss_periods: 3.0,
             publish: true,
+            ros2_domain: None,
         }
     }
 }
@@ -195,6 +200,7 @@ struct SetState {
 struct FusedSink<S> {
     inner: S,
     publisher: Option<RowPublisher>,
+    ros2: Option<Ros2Publisher>,
     set: Arc<Mutex<SetState>>,
     fused: Vec<Measurement>,
     rows_published: u64,
@@ -206,10 +212,12 @@ struct FusedSink<S> {
 impl<S: MeasurementSink> MeasurementSink for FusedSink<S> {
     fn write(&mut self, rows: &[Measurement]) -> Result<(), IoError> {
         let r = self.inner.write(rows);
-        if let Some(p) = &self.publisher {
+        if self.publisher.is_some() || self.ros2.is_some() {
             self.fused.clear();
             self.fused
                 .extend(rows.iter().filter(|m| m.camera == CameraId::Fused));
+        }
+        if let Some(p) = &self.publisher {
             if !self.fused.is_empty() {
                 let s = *self.set.lock().unwrap_or_else(|e| e.into_inner());
                 match p.publish_runs(Kind::Fused, s.complete, s.cameras, &self.fused) {
@@ -221,6 +229,18 @@ impl<S: MeasurementSink> MeasurementSink for FusedSink<S> {
                         self.publish_errors += 1;
                         self.first_publish_error.get_or_insert(e.to_string());
                     }
+                }
+            }
+        }
+        // After the fused rows: ROS 2 subscribers do not hold up the fusion's own.
+        if let Some(p) = &self.ros2 {
+            for run in self
+                .fused
+                .chunk_by(|a, b| a.frame == b.frame && a.timestamp_ns == b.timestamp_ns)
+            {
+                if let Err(e) = p.publish(run) {
+                    self.publish_errors += 1;
+                    self.first_publish_error.get_or_insert(e.to_string());
                 }
             }
         }
@@ -543,6 +563,13 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
     } else {
         None
     };
+    let ros2 = match options.ros2_domain {
+        Some(domain) => Some(Ros2Publisher::declare(
+            &session,
+            &Ros2Names::of_table(domain, &table)?,
+        )?),
+        None => None,
+    };
     let status = RowPublisher::declare(&session, fused_key(&table, "status"), WireFormat::Json)?;
     let done = Arc::new(AtomicBool::new(false));
     let monitor = {
@@ -574,6 +601,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
     let result = pipeline.run_direct(FusedSink {
         inner: sink,
         publisher,
+        ros2,
         set,
         fused: Vec::with_capacity(64),
         rows_published: 0,

@@ -18,6 +18,7 @@
 //! | `rodtrack/<table>/fused/rows` | the fused rows of each frame set, with the set's completeness | `layout` |
 //! | `rodtrack/<table>/fused/ball` | each frame's ball rows: the cameras' and the fused one | `ball_layout` |
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
+//! | `<domain>/rodtrack/<table>/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_...` | the fused rods for ROS 2 over rmw_zenoh (`fuse --ros2-domain`), with rmw_zenoh's attachment and liveliness tokens | CDR (`ros2`) |
 //!
 //! Layout:
 //! - `layout`: the messages (binary layout version 1 and its JSON variant), no zenoh in it;
@@ -31,6 +32,8 @@
 //! - `monitor`: a remote console's subscriber to every node of a table (rows, statuses,
 //!   previews), decoded, malformed messages counted;
 //! - `replay`: an MCAP recording's rows published again in real time, on the same keys;
+//! - `ros2`: the fused rows as ROS 2 `sensor_msgs/msg/JointState` over rmw_zenoh (its key
+//!   expression, attachment and liveliness tokens);
 //! - `subscriber`: a program's subscriber to the rows (the fused rows of a table), decoded
 //!   (the example `fused_subscriber` prints each rod's fused position through it).
 
@@ -54,6 +57,8 @@ pub mod net;
 pub mod preview;
 #[cfg(feature = "zenoh")]
 pub mod replay;
+#[cfg(feature = "zenoh")]
+pub mod ros2;
 #[cfg(feature = "zenoh")]
 pub mod subscriber;
 

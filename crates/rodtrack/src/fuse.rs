@@ -62,6 +62,11 @@ pub struct Args {
     /// With --mcap: how the file's chunks are compressed.
     #[arg(long, value_enum, default_value_t = crate::recording::CompressionArg::None, requires = "mcap")]
     pub mcap_compression: crate::recording::CompressionArg,
+    /// With --publish zenoh: also publish the fused rods for ROS 2 over rmw_zenoh in this
+    /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
+    /// /rodtrack/<table>/joint_states (docs/network.md).
+    #[arg(long, requires = "publish")]
+    pub ros2_domain: Option<u32>,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: NetArgs,
@@ -134,6 +139,7 @@ fn run_node(args: Args) -> Result<()> {
         },
         loss_periods: args.loss_frames,
         publish: args.publish.is_some(),
+        ros2_domain: args.ros2_domain,
     };
     let stop = Arc::new(AtomicBool::new(false));
     crate::interrupt::install(stop.clone());
@@ -148,6 +154,11 @@ fn run_node(args: Args) -> Result<()> {
             String::new()
         }
     );
+    if let Some(d) = options.ros2_domain {
+        eprintln!(
+            "ROS 2 (rmw_zenoh, domain {d}): sensor_msgs/msg/JointState on /rodtrack/{table}/joint_states"
+        );
+    }
     let ball: Option<Box<dyn rodtrack_io::BallSink>> = match &args.ball_out {
         Some(path) => {
             if cal.cameras.iter().all(|c| c.ball.is_none()) {

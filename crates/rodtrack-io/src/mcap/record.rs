@@ -488,24 +488,12 @@ impl Inner {
         rows: &[&Measurement],
         time_ns: u64,
     ) -> Result<(), IoError> {
-        let mut m = JointState::default();
-        m.set_stamp_ns(time_ns);
-        m.frame_id = self
+        let frame_id = self
             .topic_name(Topic::Rows(camera))
             .trim_start_matches('/')
             .trim_end_matches("/rows")
             .to_string();
-        for r in rows.iter().map(|r| r.sanitized()) {
-            if !matches!(r.status, Status::Ok | Status::Predicted | Status::Conflict) {
-                continue;
-            }
-            m.name.push(format!("rod{}_slide", r.rod));
-            m.position.push(r.position_mm * 1e-3);
-            m.velocity.push(r.velocity_mm_s * 1e-3);
-            m.name.push(format!("rod{}_turn", r.rod));
-            m.position.push(r.angle_unwrapped_rad);
-            m.velocity.push(r.angular_velocity_rad_s);
-        }
+        let m = JointState::of_rows(rows.iter().copied(), time_ns, frame_id);
         let mut cdr = std::mem::take(&mut self.cdr);
         m.to_cdr(&mut cdr);
         let r = self.message(Topic::JointStates(camera), time_ns, &cdr);

@@ -8,6 +8,8 @@
 //! (`float64` elements 8-byte aligned, no padding when the sequence is empty). Nothing is
 //! padded after the last field.
 
+use rodtrack_core::{Measurement, Status};
+
 /// The joint states' schema name (ROS 2's `sensor_msgs/msg/JointState`).
 pub const JOINT_STATE_SCHEMA_NAME: &str = "sensor_msgs/msg/JointState";
 
@@ -70,6 +72,33 @@ impl JointState {
     /// The stamp in ns (0 before the epoch).
     pub fn stamp_ns(&self) -> u64 {
         u64::try_from(self.stamp_sec).unwrap_or(0) * 1_000_000_000 + u64::from(self.stamp_nanosec)
+    }
+
+    /// The joint state of a frame's rows: two joints per rod whose row has a value (status
+    /// `ok`, `predicted` or `conflict`), `rod<k>_slide` (m, m/s) and `rod<k>_turn` (rad, rad/s,
+    /// whole turns counted), stamped `time_ns` (ns since the epoch).
+    pub fn of_rows<'a>(
+        rows: impl IntoIterator<Item = &'a Measurement>,
+        time_ns: u64,
+        frame_id: String,
+    ) -> JointState {
+        let mut m = JointState {
+            frame_id,
+            ..JointState::default()
+        };
+        m.set_stamp_ns(time_ns);
+        for r in rows.into_iter().map(|r| r.sanitized()) {
+            if !matches!(r.status, Status::Ok | Status::Predicted | Status::Conflict) {
+                continue;
+            }
+            m.name.push(format!("rod{}_slide", r.rod));
+            m.position.push(r.position_mm * 1e-3);
+            m.velocity.push(r.velocity_mm_s * 1e-3);
+            m.name.push(format!("rod{}_turn", r.rod));
+            m.position.push(r.angle_unwrapped_rad);
+            m.velocity.push(r.angular_velocity_rad_s);
+        }
+        m
     }
 
     /// The message in CDR, appended to `out` (cleared first).
