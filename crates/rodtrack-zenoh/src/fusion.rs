@@ -234,14 +234,9 @@ impl<S: MeasurementSink> MeasurementSink for FusedSink<S> {
         }
         // After the fused rows: ROS 2 subscribers do not hold up the fusion's own.
         if let Some(p) = &self.ros2 {
-            for run in self
-                .fused
-                .chunk_by(|a, b| a.frame == b.frame && a.timestamp_ns == b.timestamp_ns)
-            {
-                if let Err(e) = p.publish(run) {
-                    self.publish_errors += 1;
-                    self.first_publish_error.get_or_insert(e.to_string());
-                }
+            if let Err(e) = p.publish_frames(&self.fused) {
+                self.publish_errors += 1;
+                self.first_publish_error.get_or_insert(e.to_string());
             }
         }
         r

@@ -2,10 +2,13 @@
 //! time by their log times (the frames' capture timestamps), on the key expressions the
 //! camera nodes and the fusion node use: a camera's rows on `rodtrack/<table>/cam/<camera>/rows`
 //! (kind `rows`), the fused rows on `rodtrack/<table>/fused/rows` (kind `fused`), in the
-//! node's wire format. The keys are the recording's topics without their leading `/`.
+//! node's wire format. The keys are the recording's topics without their leading `/`. With
+//! [`ReplayOptions::ros2_domain`] the fused rows also go out for ROS 2 over rmw_zenoh, as the
+//! fusion node publishes them ([`crate::ros2`]).
 
 use crate::layout::{camera_bit, Kind};
 use crate::net::{NetworkOptions, RowPublisher};
+use crate::ros2::{Ros2Names, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::{CameraId, Measurement};
 use rodtrack_io::mcap::{parse_rows_message, McapFile, ROWS_SCHEMA_NAME};
@@ -21,6 +24,9 @@ pub struct ReplayOptions {
     /// The wait after joining the network and before the first message, so that the
     /// subscribers' interest has reached this node (zenoh drops what nobody is known to want).
     pub start_delay: Duration,
+    /// Also publish the fused rows for ROS 2 over rmw_zenoh in this domain, as the fusion node
+    /// does ([`crate::ros2`]; the table from the fused rows' topic).
+    pub ros2_domain: Option<u32>,
 }
 
 impl Default for ReplayOptions {
@@ -28,6 +34,7 @@ impl Default for ReplayOptions {
         ReplayOptions {
             speed: 1.0,
             start_delay: Duration::from_secs(1),
+            ros2_domain: None,
         }
     }
 }
@@ -140,6 +147,26 @@ pub fn replay(
         .map(|(key, _)| RowPublisher::declare(&session, key.clone(), net.format))
         .collect::<Result<Vec<_>, _>>()?;
     let kinds: Vec<Kind> = channels.values().map(|(_, k)| *k).collect();
+    let ros2 = match options.ros2_domain {
+        Some(domain) => {
+            let table = channels
+                .values()
+                .find_map(|(key, _)| {
+                    key.strip_prefix("rodtrack/")
+                        .and_then(|k| k.strip_suffix("/fused/rows"))
+                })
+                .ok_or_else(|| {
+                    ZenohError::Invalid(
+                        "the recording has no fused rows (rodtrack/<table>/fused/rows) to publish for ROS 2".into(),
+                    )
+                })?;
+            Some(Ros2Publisher::declare(
+                &session,
+                &Ros2Names::of_table(domain, table)?,
+            )?)
+        }
+        None => None,
+    };
     if !sleep_until(Instant::now() + options.start_delay, stop) {
         return Ok(report);
     }
@@ -159,12 +186,16 @@ pub fn replay(
             _ => 0,
         };
         publishers[p.publisher].publish_runs(kind, true, mask, &p.rows)?;
+        if let (Kind::Fused, Some(r)) = (kind, &ros2) {
+            r.publish_frames(&p.rows)?;
+        }
         report.messages += 1;
         report.rows += p.rows.len() as u64;
     }
     report.duration_s = start.elapsed().as_secs_f64();
     // Undeclared before the session closes.
     drop(publishers);
+    drop(ros2);
     Ok(report)
 }
 

@@ -219,6 +219,20 @@ impl Ros2Publisher {
             .map_err(|e| ZenohError::zenoh(format!("publishing on {}", self.key()), e))
     }
 
+    /// Publishes one joint state per frame of `rows` (runs of rows with the same frame and
+    /// timestamp); the first error, after trying every frame.
+    pub fn publish_frames(&self, rows: &[Measurement]) -> Result<(), ZenohError> {
+        let mut first = Ok(());
+        for run in rows.chunk_by(|a, b| a.frame == b.frame && a.timestamp_ns == b.timestamp_ns) {
+            if let Err(e) = self.publish(run) {
+                if first.is_ok() {
+                    first = Err(e);
+                }
+            }
+        }
+        first
+    }
+
     /// The data's key expression.
     pub fn key(&self) -> &str {
         self.publisher.key_expr().as_str()

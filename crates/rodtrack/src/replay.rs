@@ -21,6 +21,11 @@ pub struct Args {
     /// subscribers are known (messages nobody is known to want are dropped).
     #[arg(long, default_value_t = 1.0)]
     pub start_delay_s: f64,
+    /// Also publish the recording's fused rows for ROS 2 over rmw_zenoh in this domain
+    /// (ROS_DOMAIN_ID), as `fuse --ros2-domain` does: sensor_msgs/msg/JointState on
+    /// /rodtrack/<table>/joint_states, the table from the recording (docs/network.md).
+    #[arg(long)]
+    pub ros2_domain: Option<u32>,
     /// The network's endpoints (the keys are the recording's topics; --table is not used).
     #[command(flatten)]
     pub net: NetArgs,
@@ -66,6 +71,7 @@ fn run_replay(args: Args) -> Result<()> {
     let options = ReplayOptions {
         speed: args.speed,
         start_delay: std::time::Duration::from_secs_f64(args.start_delay_s),
+        ros2_domain: args.ros2_domain,
     };
     eprintln!(
         "replaying {} ({} messages); Ctrl-C to stop",
