@@ -58,6 +58,8 @@ pub struct Ros2Names {
     pub topic: String,
     /// The node's name: `rodtrack_fusion_<table>`.
     pub node: String,
+    /// The messages' `header.frame_id`: `rodtrack/<table>`.
+    pub frame_id: String,
 }
 
 impl Ros2Names {
@@ -84,6 +86,7 @@ impl Ros2Names {
             domain,
             topic: format!("/rodtrack/{table}/joint_states"),
             node: format!("rodtrack_fusion_{table}"),
+            frame_id: format!("rodtrack/{table}"),
         })
     }
 
@@ -194,7 +197,7 @@ impl Ros2Publisher {
             _tokens: tokens,
             gid: gid_of(&pub_token),
             seq: AtomicI64::new(1),
-            frame_id: strip_slashes(&names.topic).replace("/joint_states", ""),
+            frame_id: names.frame_id.clone(),
             cdr: Mutex::new(Vec::with_capacity(1024)),
         })
     }
