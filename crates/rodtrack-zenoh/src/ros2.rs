@@ -72,14 +72,14 @@ impl Ros2Names {
             && !table.contains("__");
         if !ok {
             return Err(ZenohError::Invalid(format!(
-                "table name {table:?} cannot be part of a ROS 2 topic name (letters, digits and single underscores, not starting with a digit): choose another --table for --ros2-domain"
+                "--ros2-domain: table name {table:?} (--table, or the recording's) cannot be part of a ROS 2 topic name (letters, digits and single underscores, not starting with a digit)"
             )));
         }
         // rmw_zenoh's domains are what ROS 2 allows (0 to 232 on Linux); a larger one would
         // be read by no ROS node.
         if domain > 232 {
             return Err(ZenohError::Invalid(format!(
-                "ROS 2 domain id {domain}: ROS 2 uses 0 to 232"
+                "--ros2-domain {domain}: ROS 2 domain ids are 0 to 232"
             )));
         }
         Ok(Ros2Names {
@@ -272,9 +272,10 @@ mod tests {
         assert_eq!(parts[12].split(':').count(), 6);
         for bad in ["", "2lab", "la b", "la__b", "lab/x", "läb"] {
             let e = Ros2Names::of_table(0, bad).unwrap_err().to_string();
-            assert!(e.contains("--table"), "{e}");
+            assert!(e.contains("--table") && e.contains("--ros2-domain"), "{e}");
         }
-        assert!(Ros2Names::of_table(233, "lab").is_err());
+        let e = Ros2Names::of_table(233, "lab").unwrap_err().to_string();
+        assert!(e.contains("--ros2-domain 233"), "{e}");
     }
 
     #[test]

@@ -155,8 +155,10 @@ fn run_node(args: Args) -> Result<()> {
         }
     );
     if let Some(d) = options.ros2_domain {
+        let names = rodtrack_zenoh::ros2::Ros2Names::of_table(d, &table)?;
         eprintln!(
-            "ROS 2 (rmw_zenoh, domain {d}): sensor_msgs/msg/JointState on /rodtrack/{table}/joint_states"
+            "ROS 2 (rmw_zenoh, domain {d}): sensor_msgs/msg/JointState on {}",
+            names.topic
         );
     }
     let ball: Option<Box<dyn rodtrack_io::BallSink>> = match &args.ball_out {
