@@ -1,8 +1,8 @@
-"""Checks what `rodtrack fuse --publish zenoh --ros2-domain D` publishes for ROS 2 over
-rmw_zenoh, as an rmw_zenoh subscriber and ROS 2's graph would read it, with parsers that are
+"""Checks what `rodtrack fuse --publish zenoh --ros2-domain D` (or a camera node, `track
+--publish zenoh --ros2-domain D`) publishes for ROS 2 over rmw_zenoh, as an rmw_zenoh subscriber and ROS 2's graph would read it, with parsers that are
 not rodtrack's:
 - the data's key expression is the one rmw_zenoh's subscription declares for the topic
-  `/rodtrack/<table>/joint_states` of type `sensor_msgs/msg/JointState` (`<domain>/<topic
+  (`/rodtrack/<table>/joint_states`, a camera node's `/rodtrack/<table>/cam/<camera>/joint_states`) of type `sensor_msgs/msg/JointState` (`<domain>/<topic
   without its slashes>/<DDS type>/<type hash>`), the type hash computed by rosbags from ROS 2's
   own definition; the samples are received through zenoh-ext's advanced subscriber, as
   rmw_zenoh's subscriptions receive them;
@@ -15,7 +15,8 @@ not rodtrack's:
   the topic, type, hash and QoS (every policy at rmw_zenoh's default) as above;
 - every payload decodes with rosbags' CDR reader as sensor_msgs/msg/JointState and rosbags
   serialises it back to the same bytes; two joints per rod, finite values.
-Usage: python ros2_zenoh.py ENDPOINT SECONDS DOMAIN TABLE RODS"""
+Usage: python ros2_zenoh.py ENDPOINT SECONDS DOMAIN TOPIC NODE RODS (RODS: the rods every run
+must show, 0..RODS-1; 0: at least one)"""
 import json
 import math
 import sys
@@ -27,13 +28,12 @@ import zenoh
 from rosbags.typesys import Stores, get_typestore
 from zenoh.ext import Int64, UInt8, declare_advanced_subscriber, z_deserialize
 
-endpoint, seconds, domain, table, n_rods = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
+endpoint, seconds, domain, topic, node, n_rods = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5], int(sys.argv[6])
 JS = "sensor_msgs/msg/JointState"
 humble, jazzy = get_typestore(Stores.ROS2_HUMBLE), get_typestore(Stores.ROS2_JAZZY)
 type_hash = humble.hash_rihs01(JS)
 assert type_hash == jazzy.hash_rihs01(JS), "Humble's and Jazzy's JointState differ"
 dds_type = "sensor_msgs::msg::dds_::JointState_"
-topic = f"/rodtrack/{table}/joint_states"
 key = f"{domain}/{topic.strip('/')}/{dds_type}/{type_hash}"
 
 samples, lock = [], threading.Lock()
@@ -72,6 +72,7 @@ for t in tokens:
 assert len(pubs) == 1, f"one publisher token expected, got {tokens}"
 pub_token, p = pubs[0]
 assert (p[2], p[3]) in nodes, f"no node token of session {p[2]}, node {p[3]}: {tokens}"
+assert nodes[(p[2], p[3])] == node and p[8] == node, f"node {node} expected: {pub_token}"
 assert p[6] == "%" and p[7] == "%", "enclave and namespace '/'"
 assert p[9].replace("%", "/") == topic and p[10] == dds_type and p[11] == type_hash, pub_token
 gid = xxhash.xxh3_128_intdigest(pub_token.encode()).to_bytes(16, "little")
@@ -95,6 +96,6 @@ for k, payload, att, recv_ns in samples:
         assert abs(msg.position[i]) < 1.0, f"rod {rod}: slide {msg.position[i]} m"
         names.add(int(rod))
 assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), "sequence numbers must go up by one"
-assert names == set(range(n_rods)), f"rods {sorted(names)}"
+assert names == set(range(n_rods)) if n_rods else names, f"rods {sorted(names)}"
 print(f"ROS 2 over rmw_zenoh: {len(samples)} JointState samples on {key}, sequence {seqs[0]}..{seqs[-1]}, "
       f"attachments and GID as rmw_zenoh's, node '{nodes[(p[2], p[3])]}' and publisher tokens, rods {min(names)}..{max(names)}")

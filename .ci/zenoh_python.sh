@@ -5,7 +5,8 @@
 # fusion node listening on an explicit tcp/127.0.0.1 endpoint and two camera nodes on
 # real-time sim:// sources connecting to it, multicast scouting off. The subscribers run for a
 # bounded time; each one's output must hold every rod, finite positions and increasing frame
-# ids. The fusion node also publishes for ROS 2 over rmw_zenoh (--ros2-domain 0), checked by
+# ids. The fusion node also publishes for ROS 2 over rmw_zenoh (--ros2-domain 0), camera node 0
+# too (--ros2-domain 1), each checked by
 # .ci/ros2_zenoh.py against rmw_zenoh's rules (key expression, attachment, liveliness tokens,
 # CDR through rosbags). Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
 # target/release/rodtrack) and the example built beside it (RODTRACK_EXAMPLE, default
@@ -44,20 +45,26 @@ t0=$(( $(date +%s%3N) + 4000 ))
 for cam in 0 1; do
   "$bin" track --calib "$tmp/c.toml" --camera "cam$cam" \
       --input "sim://exp3?camera=$cam&frames=20&loop=1&prerender=20&realtime=1&trigger_unix_ms=$t0" \
-      --max-frames 1200 --publish zenoh --zenoh-connect "$endpoint" 2>"$tmp/cam$cam.err" &
+      --max-frames 1200 --publish zenoh --zenoh-connect "$endpoint" $( [ $cam = 0 ] && echo --ros2-domain 1 ) \
+      2>"$tmp/cam$cam.err" &
   pids+=($!)
 done
 
 logs() { tail -n 5 "$tmp/sub.txt" "$tmp/sub_rs.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
 timeout 30 "$example" "$endpoint" 8 >"$tmp/sub_rs.txt" 2>&1 &
 rust_sub=$!
-timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 0 default 8 >"$tmp/ros2.txt" 2>&1 &
+timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 0 /rodtrack/default/joint_states \
+    rodtrack_fusion_default 8 >"$tmp/ros2.txt" 2>&1 &
 ros2_sub=$!
+timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 1 /rodtrack/default/cam/cam0/joint_states \
+    rodtrack_camera_default_cam0 0 >"$tmp/ros2_cam.txt" 2>&1 &
+ros2_cam=$!
 timeout 30 "$venv/bin/python" python/examples/zenoh_subscriber.py "$endpoint" 8 >"$tmp/sub.txt" \
   || { echo "the Python subscriber failed"; logs; exit 1; }
 wait "$rust_sub" || { echo "the Rust subscriber failed"; logs; exit 1; }
-wait "$ros2_sub" || { echo "the ROS 2 (rmw_zenoh) check failed"; cat "$tmp/ros2.txt"; logs; exit 1; }
-cat "$tmp/ros2.txt"
+wait "$ros2_sub" || { echo "the ROS 2 (rmw_zenoh) check of the fusion node failed"; cat "$tmp/ros2.txt"; logs; exit 1; }
+wait "$ros2_cam" || { echo "the ROS 2 (rmw_zenoh) check of camera node 0 failed"; cat "$tmp/ros2_cam.txt"; logs; exit 1; }
+cat "$tmp/ros2.txt" "$tmp/ros2_cam.txt"
 
 for who in python:sub.txt rust:sub_rs.txt; do
 "$venv/bin/python" - "${who%%:*}" "$tmp/${who#*:}" <<'PY' || { logs; exit 1; }

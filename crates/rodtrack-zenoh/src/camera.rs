@@ -6,11 +6,13 @@
 //! counters on `.../status` once a second; [`CameraNode::end`] says the run ended. With a
 //! preview rate, the hooks also publish a downscaled image of the camera's latest frame on
 //! `.../preview` that many times per second (module `camera_preview`).
-//! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`.
+//! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`. With a ROS 2
+//! domain the filtered rows also go out as `sensor_msgs/msg/JointState` ([`crate::ros2`]).
 
 use crate::camera_preview::PreviewFeed;
 use crate::layout::{camera_bit, Header, Kind};
 use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
+use crate::ros2::{Ros2Names, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::{CameraPipeline, Measurement, Timestamp};
@@ -27,6 +29,7 @@ pub struct CameraNode {
     raw: RowPublisher,
     ball: RowPublisher,
     status: RowPublisher,
+    ros2: Option<Ros2Publisher>,
     preview: Option<PreviewFeed>,
     _session: zenoh::Session,
     table: String,
@@ -42,15 +45,21 @@ pub struct CameraNode {
 impl CameraNode {
     /// Opens the zenoh session and declares the camera's publishers; `name` and `index` are
     /// the camera's in the calibration; `preview_fps`: preview frames per second on
-    /// `.../preview` (0: none).
+    /// `.../preview` (0: none); `ros2_domain`: also publish the filtered rows for ROS 2 over
+    /// rmw_zenoh in that domain ([`crate::ros2`], topic
+    /// `/rodtrack/<table>/cam/<camera>/joint_states`).
     pub fn open(
         net: &NetworkOptions,
         name: &str,
         index: u32,
         preview_fps: f64,
+        ros2_domain: Option<u32>,
     ) -> Result<Arc<CameraNode>, ZenohError> {
         let table = net.table()?.to_string();
         check_chunk("camera name", name)?;
+        let ros2_names = ros2_domain
+            .map(|d| Ros2Names::camera(d, &table, name))
+            .transpose()?;
         let session = net.open()?;
         let decl = |what: &str, format| {
             RowPublisher::declare(&session, camera_key(&table, name, what), format)
@@ -65,7 +74,12 @@ impl CameraNode {
                 preview_fps,
             )?)
         };
+        let ros2 = match &ros2_names {
+            Some(n) => Some(Ros2Publisher::declare(&session, n)?),
+            None => None,
+        };
         Ok(Arc::new(CameraNode {
+            ros2,
             rows: decl("rows", net.format)?,
             raw: decl("raw", net.format)?,
             ball: decl("ball", net.format)?,
@@ -173,6 +187,16 @@ impl MeasurementSink for CameraRowsSink {
         let r = n
             .rows
             .publish_runs(Kind::CameraRows, true, camera_bit(n.index), rows);
+        // After the node's own rows: ROS 2 subscribers do not hold up the fusion's input.
+        if let Some(p) = &n.ros2 {
+            let r = n.count(p.publish_frames(rows));
+            if let Err(e) = r {
+                return Err(IoError::Net {
+                    addr: p.key().to_string(),
+                    source: std::io::Error::other(e.to_string()),
+                });
+            }
+        }
         n.count(r).map_err(|e| IoError::Net {
             addr: n.rows.key().to_string(),
             source: std::io::Error::other(e.to_string()),

@@ -561,7 +561,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
     let ros2 = match options.ros2_domain {
         Some(domain) => Some(Ros2Publisher::declare(
             &session,
-            &Ros2Names::of_table(domain, &table)?,
+            &Ros2Names::fused(domain, &table)?,
         )?),
         None => None,
     };

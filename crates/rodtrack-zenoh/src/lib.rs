@@ -19,6 +19,7 @@
 //! | `rodtrack/<table>/fused/ball` | each frame's ball rows: the cameras' and the fused one | `ball_layout` |
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
 //! | `<domain>/rodtrack/<table>/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_...` | the fused rods for ROS 2 over rmw_zenoh (`fuse --ros2-domain`), with rmw_zenoh's attachment and liveliness tokens | CDR (`ros2`) |
+//! | `<domain>/rodtrack/<table>/cam/<camera>/joint_states/...` (the same type and hash) | a camera node's rods for ROS 2 over rmw_zenoh (`track --publish zenoh --ros2-domain`) | CDR (`ros2`) |
 //!
 //! Layout:
 //! - `layout`: the messages (binary layout version 1 and its JSON variant), no zenoh in it;

@@ -162,7 +162,7 @@ pub fn replay(
                 })?;
             Some(Ros2Publisher::declare(
                 &session,
-                &Ros2Names::of_table(domain, table)?,
+                &Ros2Names::fused(domain, table)?,
             )?)
         }
         None => None,

@@ -1,4 +1,4 @@
-//! ROS 2 over rmw_zenoh: the fused rows as `sensor_msgs/msg/JointState`, published the way
+//! ROS 2 over rmw_zenoh: the fused rows (or a camera node's) as `sensor_msgs/msg/JointState`, published the way
 //! rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh (`ros2 topic echo`, a
 //! controller) receives them from the same zenoh router.
 //!
@@ -63,30 +63,32 @@ pub struct Ros2Names {
 }
 
 impl Ros2Names {
-    /// The names for `table` in `domain`; the table's name must be a ROS 2 name token
+    /// The fusion node's names for `table` in `domain`: the topic `/rodtrack/<table>/joint_states`
+    /// of the node `rodtrack_fusion_<table>`. The table's name must be a ROS 2 name token
     /// (letters, digits and single underscores, not starting with a digit).
-    pub fn of_table(domain: u32, table: &str) -> Result<Ros2Names, ZenohError> {
-        let ok = !table.is_empty()
-            && table.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-            && !table.starts_with(|c: char| c.is_ascii_digit())
-            && !table.contains("__");
-        if !ok {
-            return Err(ZenohError::Invalid(format!(
-                "--ros2-domain: table name {table:?} (--table, or the recording's) cannot be part of a ROS 2 topic name (letters, digits and single underscores, not starting with a digit)"
-            )));
-        }
-        // rmw_zenoh's domains are what ROS 2 allows (0 to 232 on Linux); a larger one would
-        // be read by no ROS node.
-        if domain > 232 {
-            return Err(ZenohError::Invalid(format!(
-                "--ros2-domain {domain}: ROS 2 domain ids are 0 to 232"
-            )));
-        }
+    pub fn fused(domain: u32, table: &str) -> Result<Ros2Names, ZenohError> {
+        check_domain(domain)?;
+        check_token("table name", "--table, or the recording's", table)?;
         Ok(Ros2Names {
             domain,
             topic: format!("/rodtrack/{table}/joint_states"),
             node: format!("rodtrack_fusion_{table}"),
             frame_id: format!("rodtrack/{table}"),
+        })
+    }
+
+    /// A camera node's names: the topic `/rodtrack/<table>/cam/<camera>/joint_states` of the
+    /// node `rodtrack_camera_<table>_<camera>`; the table's and the camera's names must be ROS
+    /// 2 name tokens.
+    pub fn camera(domain: u32, table: &str, camera: &str) -> Result<Ros2Names, ZenohError> {
+        check_domain(domain)?;
+        check_token("table name", "--table", table)?;
+        check_token("camera name", "the calibration's", camera)?;
+        Ok(Ros2Names {
+            domain,
+            topic: format!("/rodtrack/{table}/cam/{camera}/joint_states"),
+            node: format!("rodtrack_camera_{table}_{camera}"),
+            frame_id: format!("rodtrack/{table}/cam/{camera}"),
         })
     }
 
@@ -118,6 +120,31 @@ impl Ros2Names {
             mangle(&self.topic)
         )
     }
+}
+
+/// ROS 2's domain ids: 0 to 232 (on Linux); a larger one would be read by no ROS node.
+fn check_domain(domain: u32) -> Result<(), ZenohError> {
+    if domain > 232 {
+        return Err(ZenohError::Invalid(format!(
+            "--ros2-domain {domain}: ROS 2 domain ids are 0 to 232"
+        )));
+    }
+    Ok(())
+}
+
+/// A name that goes into a ROS 2 topic: letters, digits and single underscores, not starting
+/// with a digit.
+fn check_token(what: &str, from: &str, name: &str) -> Result<(), ZenohError> {
+    let ok = !name.is_empty()
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        && !name.starts_with(|c: char| c.is_ascii_digit())
+        && !name.contains("__");
+    if !ok {
+        return Err(ZenohError::Invalid(format!(
+            "--ros2-domain: {what} {name:?} ({from}) cannot be part of a ROS 2 topic name (letters, digits and single underscores, not starting with a digit)"
+        )));
+    }
+    Ok(())
 }
 
 /// A name with each `/` written `%` (rmw_zenoh's `mangle_name`).
@@ -254,7 +281,7 @@ mod tests {
 
     #[test]
     fn key_expressions_and_tokens_follow_rmw_zenoh() {
-        let n = Ros2Names::of_table(0, "lab").unwrap();
+        let n = Ros2Names::fused(0, "lab").unwrap();
         assert_eq!(
             n.topic_keyexpr(),
             format!("0/rodtrack/lab/joint_states/sensor_msgs::msg::dds_::JointState_/{JOINT_STATE_TYPE_HASH}")
@@ -271,11 +298,21 @@ mod tests {
         assert_eq!(parts[9], "%rodtrack%lab%joint_states");
         assert_eq!(parts[12].split(':').count(), 6);
         for bad in ["", "2lab", "la b", "la__b", "lab/x", "läb"] {
-            let e = Ros2Names::of_table(0, bad).unwrap_err().to_string();
+            let e = Ros2Names::fused(0, bad).unwrap_err().to_string();
             assert!(e.contains("--table") && e.contains("--ros2-domain"), "{e}");
         }
-        let e = Ros2Names::of_table(233, "lab").unwrap_err().to_string();
+        let e = Ros2Names::fused(233, "lab").unwrap_err().to_string();
         assert!(e.contains("--ros2-domain 233"), "{e}");
+        let c = Ros2Names::camera(0, "lab", "cam0").unwrap();
+        assert_eq!(c.topic, "/rodtrack/lab/cam/cam0/joint_states");
+        assert_eq!(c.node, "rodtrack_camera_lab_cam0");
+        let t = c.publisher_token("abc1", 0, 1);
+        assert_eq!(t.split('/').count(), 13, "{t}");
+        assert!(t.contains("/%rodtrack%lab%cam%cam0%joint_states/"), "{t}");
+        let e = Ros2Names::camera(0, "lab", "cam-0")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("camera name \"cam-0\""), "{e}");
     }
 
     #[test]

@@ -155,7 +155,7 @@ fn run_node(args: Args) -> Result<()> {
         }
     );
     if let Some(d) = options.ros2_domain {
-        let names = rodtrack_zenoh::ros2::Ros2Names::of_table(d, &table)?;
+        let names = rodtrack_zenoh::ros2::Ros2Names::fused(d, &table)?;
         eprintln!(
             "ROS 2 (rmw_zenoh, domain {d}): sensor_msgs/msg/JointState on {}",
             names.topic

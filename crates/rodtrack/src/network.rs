@@ -69,11 +69,22 @@ pub fn network_options(a: &NetArgs) -> rodtrack_zenoh::net::NetworkOptions {
 
 /// Opens the node of camera `name` (index `index` in the calibration).
 #[cfg(feature = "zenoh")]
-pub fn open_camera_node(a: &NetArgs, name: &str, index: u32, preview_fps: f64) -> Result<Node> {
+pub fn open_camera_node(
+    a: &NetArgs,
+    name: &str,
+    index: u32,
+    preview_fps: f64,
+    ros2_domain: Option<u32>,
+) -> Result<Node> {
     use anyhow::Context;
-    let node =
-        rodtrack_zenoh::camera::CameraNode::open(&network_options(a), name, index, preview_fps)
-            .with_context(|| format!("camera {index} ({name}): joining the zenoh network"))?;
+    let node = rodtrack_zenoh::camera::CameraNode::open(
+        &network_options(a),
+        name,
+        index,
+        preview_fps,
+        ros2_domain,
+    )
+    .with_context(|| format!("camera {index} ({name}): joining the zenoh network"))?;
     eprintln!(
         "publishing on {} (and .../raw, .../status)",
         node.rows_key()
@@ -83,7 +94,13 @@ pub fn open_camera_node(a: &NetArgs, name: &str, index: u32, preview_fps: f64) -
 
 /// Opens the node of camera `name` (index `index` in the calibration).
 #[cfg(not(feature = "zenoh"))]
-pub fn open_camera_node(_a: &NetArgs, _name: &str, _index: u32, _preview_fps: f64) -> Result<Node> {
+pub fn open_camera_node(
+    _a: &NetArgs,
+    _name: &str,
+    _index: u32,
+    _preview_fps: f64,
+    _ros2_domain: Option<u32>,
+) -> Result<Node> {
     Err(no_zenoh())
 }
 

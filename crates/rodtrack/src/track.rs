@@ -96,6 +96,12 @@ pub struct Args {
     /// `rodtrack/<table>/cam/<camera>/ball` (the fusion node fuses them per frame).
     #[arg(long, requires = "publish")]
     pub zenoh_ball: bool,
+    /// With --publish zenoh: also publish this camera's rows for ROS 2 over rmw_zenoh in this
+    /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
+    /// /rodtrack/<table>/cam/<camera>/joint_states: a table of one camera in ROS 2
+    /// (docs/network.md).
+    #[arg(long, requires = "publish")]
+    pub ros2_domain: Option<u32>,
     /// The network's endpoints and table.
     #[command(flatten)]
     pub net: crate::network::NetArgs,
@@ -239,6 +245,7 @@ pub fn run(args: Args) -> Result<()> {
                 &cam.name,
                 cam.index,
                 args.preview_fps,
+                args.ros2_domain,
             )?)
         }
         None => None,

@@ -176,7 +176,7 @@ fn a_recording_is_replayed_in_real_time_on_the_nodes_keys() {
 fn a_replay_publishes_the_fused_rods_for_ros2_as_rmw_zenoh_does() {
     let (mcap, recorded, _) = record("zenoh_replay_ros2");
     let fused = &recorded["rodtrack/bench/fused/rows"];
-    let names = Ros2Names::of_table(7, "bench").unwrap();
+    let names = Ros2Names::fused(7, "bench").unwrap();
 
     // As an rmw_zenoh subscription: the topic's key, every sample with its attachment.
     let (session, port) = listening();
