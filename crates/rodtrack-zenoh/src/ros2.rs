@@ -1,6 +1,6 @@
-//! ROS 2 over rmw_zenoh: the fused rows (or a camera node's) as `sensor_msgs/msg/JointState`, published the way
-//! rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh (`ros2 topic echo`, a
-//! controller) receives them from the same zenoh router.
+//! ROS 2 over rmw_zenoh: the fused rows (or a camera node's) as `sensor_msgs/msg/JointState`,
+//! published the way rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh (`ros2
+//! topic echo`, a controller) receives them from the same zenoh router.
 //!
 //! What a publisher of rmw_zenoh (`rmw_zenoh_cpp`, every release of Humble from 0.1.2, Jazzy
 //! from 0.2.4, Kilted, Lyrical and Rolling up to 0.12.0 alike) puts on the network, and what
