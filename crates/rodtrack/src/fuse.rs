@@ -64,7 +64,7 @@ pub struct Args {
     pub mcap_compression: crate::recording::CompressionArg,
     /// With --publish zenoh: also publish the fused rods for ROS 2 over rmw_zenoh in this
     /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
-    /// /rodtrack/<table>/joint_states (docs/network.md).
+    /// `/rodtrack/<table>/joint_states` (docs/network.md).
     #[arg(long, requires = "publish")]
     pub ros2_domain: Option<u32>,
     /// The network's endpoints and table.

@@ -23,7 +23,7 @@ pub struct Args {
     pub start_delay_s: f64,
     /// Also publish the recording's fused rows for ROS 2 over rmw_zenoh in this domain
     /// (ROS_DOMAIN_ID), as `fuse --ros2-domain` does: sensor_msgs/msg/JointState on
-    /// /rodtrack/<table>/joint_states, the table from the recording (docs/network.md).
+    /// `/rodtrack/<table>/joint_states`, the table from the recording (docs/network.md).
     #[arg(long)]
     pub ros2_domain: Option<u32>,
     /// The network's endpoints (the keys are the recording's topics; --table is not used).

@@ -98,7 +98,7 @@ pub struct Args {
     pub zenoh_ball: bool,
     /// With --publish zenoh: also publish this camera's rows for ROS 2 over rmw_zenoh in this
     /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
-    /// /rodtrack/<table>/cam/<camera>/joint_states: a table of one camera in ROS 2
+    /// `/rodtrack/<table>/cam/<camera>/joint_states`: a table of one camera in ROS 2
     /// (docs/network.md).
     #[arg(long, requires = "publish")]
     pub ros2_domain: Option<u32>,
