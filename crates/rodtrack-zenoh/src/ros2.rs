@@ -5,21 +5,23 @@
 //! What a publisher of rmw_zenoh (`rmw_zenoh_cpp`, every release of Humble from 0.1.2, Jazzy
 //! from 0.2.4, Kilted, Lyrical and Rolling up to 0.12.0 alike) puts on the network, and what
 //! this module reproduces:
-//! - **the data**, on `<domain>/<topic without its leading and trailing "/">/<type>/<type
-//!   hash>`, the type in its DDS form (`sensor_msgs::msg::dds_::JointState_`) and the hash as
-//!   `RIHS01_<64 hex>`; the payload is the message in CDR (XCDR1, little endian, with its
-//!   4-byte encapsulation header);
+//! - **the data**, on `<domain>/<topic>/<type>/<hash>` (the topic without its leading and
+//!   trailing `/`), the type in its DDS form (`sensor_msgs::msg::dds_::JointState_`) and the
+//!   hash as `RIHS01_<64 hex>`; the payload is the message in CDR (XCDR1, little endian, with
+//!   its 4-byte encapsulation header);
 //! - **an attachment** on every sample: the publication's sequence number (`int64`, from 1),
 //!   its source timestamp (`int64`, ns since the epoch when published) and the publisher's
 //!   16-byte GID, serialised with zenoh-ext's serializer: two 8-byte little-endian integers,
 //!   then the GID as a sequence (its length as LEB128, `0x10`, then the 16 bytes). A
 //!   subscriber of rmw_zenoh drops a sample without one;
 //! - **liveliness tokens** that put the node and its publisher in the ROS graph (`ros2 node
-//!   list`, `ros2 topic list -t`, `ros2 topic info`): `@ros2_lv/<domain>/<zid>/<node id>/<entity
-//!   id>/<kind>/<enclave>/<namespace>/<node name>`, then for a publisher `/<topic>/<type>/<type
-//!   hash>/<qos>`, each `/` inside a name written `%`; the QoS as rmw_zenoh writes it, a field
-//!   left empty where it equals rmw_zenoh's default (reliable, volatile, keep last 42, no
-//!   deadline, lifespan or lease): `::,:,:,:,,` for this publisher, which uses those defaults;
+//!   list`, `ros2 topic list -t`, `ros2 topic info`): the node's
+//!   `@ros2_lv/<domain>/<zid>/<node id>/<node id>/NN/<enclave>/<namespace>/<node name>`, the
+//!   publisher's `@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/...` with, after the node
+//!   name, `/<topic>/<type>/<hash>/<qos>`; each `/` inside a name written `%`; the QoS as
+//!   rmw_zenoh writes it, a field left empty where it equals rmw_zenoh's default (reliable,
+//!   volatile, keep last 42, no deadline, lifespan or lease): `::,:,:,:,,` for this publisher,
+//!   which uses those defaults;
 //! - **the GID** is the XXH3 128-bit hash of the publisher's liveliness key expression, its low
 //!   64 bits then its high 64 bits, little endian.
 //!
