@@ -1,6 +1,6 @@
 //! ROS 2 over rmw_zenoh: the fused rows (or a camera node's) as `sensor_msgs/msg/JointState`,
-//! published the way rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh (`ros2
-//! topic echo`, a controller) receives them from the same zenoh router.
+//! published the way rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh
+//! (`ros2 topic echo`, a controller) receives them from the same zenoh router.
 //!
 //! What a publisher of rmw_zenoh (`rmw_zenoh_cpp`, every release of Humble from 0.1.2, Jazzy
 //! from 0.2.4, Kilted, Lyrical and Rolling up to 0.12.0 alike) puts on the network, and what
@@ -14,8 +14,8 @@
 //!   16-byte GID, serialised with zenoh-ext's serializer: two 8-byte little-endian integers,
 //!   then the GID as a sequence (its length as LEB128, `0x10`, then the 16 bytes). A
 //!   subscriber of rmw_zenoh drops a sample without one;
-//! - **liveliness tokens** that put the node and its publisher in the ROS graph (`ros2 node
-//!   list`, `ros2 topic list -t`, `ros2 topic info`): the node's
+//! - **liveliness tokens** that put the node and its publisher in the ROS graph
+//!   (`ros2 node list`, `ros2 topic list -t`, `ros2 topic info`): the node's
 //!   `@ros2_lv/<domain>/<zid>/<node id>/<node id>/NN/<enclave>/<namespace>/<node name>`, the
 //!   publisher's `@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/...` with, after the node
 //!   name, `/<topic>/<type>/<hash>/<qos>`; each `/` inside a name written `%`; the QoS as
