@@ -187,20 +187,20 @@ impl MeasurementSink for CameraRowsSink {
         let r = n
             .rows
             .publish_runs(Kind::CameraRows, true, camera_bit(n.index), rows);
-        // After the node's own rows: ROS 2 subscribers do not hold up the fusion's input.
-        if let Some(p) = &n.ros2 {
-            let r = n.count(p.publish_frames(rows));
-            if let Err(e) = r {
-                return Err(IoError::Net {
-                    addr: p.key().to_string(),
-                    source: std::io::Error::other(e.to_string()),
-                });
-            }
-        }
-        n.count(r).map_err(|e| IoError::Net {
-            addr: n.rows.key().to_string(),
+        let net_error = |key: &str, e: ZenohError| IoError::Net {
+            addr: key.to_string(),
             source: std::io::Error::other(e.to_string()),
-        })
+        };
+        let rows_result = n.count(r).map_err(|e| net_error(n.rows.key(), e));
+        // After the node's own rows: ROS 2 subscribers do not hold up the fusion's input.
+        // Both are tried and counted; the rows' error is reported first.
+        let ros2_result = match &n.ros2 {
+            Some(p) => n
+                .count(p.publish_frames(rows))
+                .map_err(|e| net_error(p.key(), e)),
+            None => Ok(()),
+        };
+        rows_result.and(ros2_result)
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())

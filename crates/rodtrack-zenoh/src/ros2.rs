@@ -71,12 +71,11 @@ impl Ros2Names {
     pub fn fused(domain: u32, table: &str) -> Result<Ros2Names, ZenohError> {
         check_domain(domain)?;
         check_token("table name", "--table, or the recording's", table)?;
-        Ok(Ros2Names {
+        Ok(Ros2Names::under(
             domain,
-            topic: format!("/rodtrack/{table}/joint_states"),
-            node: format!("rodtrack_fusion_{table}"),
-            frame_id: format!("rodtrack/{table}"),
-        })
+            format!("rodtrack/{table}"),
+            format!("rodtrack_fusion_{table}"),
+        ))
     }
 
     /// A camera node's names: the topic `/rodtrack/<table>/cam/<camera>/joint_states` of the
@@ -86,12 +85,22 @@ impl Ros2Names {
         check_domain(domain)?;
         check_token("table name", "--table", table)?;
         check_token("camera name", "the calibration's", camera)?;
-        Ok(Ros2Names {
+        Ok(Ros2Names::under(
             domain,
-            topic: format!("/rodtrack/{table}/cam/{camera}/joint_states"),
-            node: format!("rodtrack_camera_{table}_{camera}"),
-            frame_id: format!("rodtrack/{table}/cam/{camera}"),
-        })
+            format!("rodtrack/{table}/cam/{camera}"),
+            format!("rodtrack_camera_{table}_{camera}"),
+        ))
+    }
+
+    /// The names of a node whose joint states go on `/<prefix>/joint_states`, with the frame
+    /// id `<prefix>`.
+    fn under(domain: u32, prefix: String, node: String) -> Ros2Names {
+        Ros2Names {
+            domain,
+            topic: format!("/{prefix}/joint_states"),
+            node,
+            frame_id: prefix,
+        }
     }
 
     /// The data's key expression.
@@ -171,7 +180,11 @@ pub const ATTACHMENT_LEN: usize = 8 + 8 + 1 + 16;
 
 /// A sample's attachment as rmw_zenoh reads it (`AttachmentData`): `sequence_number`,
 /// `source_timestamp` (ns) and the GID, in zenoh-ext's serialization.
-pub fn attachment(sequence_number: i64, source_timestamp_ns: i64, gid: &[u8; 16]) -> [u8; 33] {
+pub fn attachment(
+    sequence_number: i64,
+    source_timestamp_ns: i64,
+    gid: &[u8; 16],
+) -> [u8; ATTACHMENT_LEN] {
     let mut a = [0u8; ATTACHMENT_LEN];
     a[..8].copy_from_slice(&sequence_number.to_le_bytes());
     a[8..16].copy_from_slice(&source_timestamp_ns.to_le_bytes());
@@ -237,9 +250,13 @@ impl Ros2Publisher {
         let Some(first) = rows.first() else {
             return Ok(());
         };
-        let m = JointState::of_rows(rows, first.timestamp_ns.as_nanos(), self.frame_id.clone());
         let mut cdr = self.cdr.lock().unwrap_or_else(|e| e.into_inner());
-        m.to_cdr(&mut cdr);
+        JointState::rows_to_cdr(
+            rows.iter(),
+            first.timestamp_ns.as_nanos(),
+            &self.frame_id,
+            &mut cdr,
+        );
         let now_ns = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX));

@@ -488,14 +488,10 @@ impl Inner {
         rows: &[&Measurement],
         time_ns: u64,
     ) -> Result<(), IoError> {
-        let frame_id = self
-            .topic_name(Topic::Rows(camera))
-            .trim_start_matches('/')
-            .trim_end_matches("/rows")
-            .to_string();
-        let m = JointState::of_rows(rows.iter().copied(), time_ns, frame_id);
+        let topic = self.topic_name(Topic::Rows(camera));
+        let frame_id = topic.trim_start_matches('/').trim_end_matches("/rows");
         let mut cdr = std::mem::take(&mut self.cdr);
-        m.to_cdr(&mut cdr);
+        JointState::rows_to_cdr(rows.iter().copied(), time_ns, frame_id, &mut cdr);
         let r = self.message(Topic::JointStates(camera), time_ns, &cdr);
         self.cdr = cdr;
         r

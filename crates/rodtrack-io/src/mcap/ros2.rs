@@ -101,6 +101,55 @@ impl JointState {
         m
     }
 
+    /// [`JointState::of_rows`] in CDR, written straight into `out` (cleared first): the
+    /// same bytes, with no allocation once `out` has grown to a message's size (a publisher's
+    /// per-frame path).
+    pub fn rows_to_cdr<'a>(
+        rows: impl Iterator<Item = &'a Measurement> + Clone,
+        time_ns: u64,
+        frame_id: &str,
+        out: &mut Vec<u8>,
+    ) {
+        // As `of_rows`: the rows made finite first (a NaN turns an `ok` row into one without a
+        // value), then those with a value.
+        let valued = rows
+            .map(|r| r.sanitized())
+            .filter(|r| matches!(r.status, Status::Ok | Status::Predicted | Status::Conflict));
+        let mut stamp = JointState::default();
+        stamp.set_stamp_ns(time_ns);
+        out.clear();
+        out.extend_from_slice(&CDR_LE_HEADER);
+        let mut w = CdrWriter { out };
+        w.u32(stamp.stamp_sec as u32);
+        w.u32(stamp.stamp_nanosec);
+        w.string(frame_id);
+        let n = valued.clone().count();
+        w.u32(2 * n as u32);
+        for r in valued.clone() {
+            for suffix in ["_slide", "_turn"] {
+                w.joint_name(r.rod, suffix);
+            }
+        }
+        // Positions, then velocities (m and m/s for a slide, rad and rad/s for a turn), as
+        // `of_rows` orders them; no effort.
+        for velocity in [false, true] {
+            w.u32(2 * n as u32);
+            if n > 0 {
+                w.align(8);
+            }
+            for r in valued.clone() {
+                let (slide, turn) = if velocity {
+                    (r.velocity_mm_s * 1e-3, r.angular_velocity_rad_s)
+                } else {
+                    (r.position_mm * 1e-3, r.angle_unwrapped_rad)
+                };
+                w.out.extend_from_slice(&slide.to_le_bytes());
+                w.out.extend_from_slice(&turn.to_le_bytes());
+            }
+        }
+        w.u32(0);
+    }
+
     /// The message in CDR, appended to `out` (cleared first).
     pub fn to_cdr(&self, out: &mut Vec<u8>) {
         out.clear();
@@ -187,6 +236,25 @@ impl CdrWriter<'_> {
     fn string(&mut self, s: &str) {
         self.u32(s.len() as u32 + 1);
         self.out.extend_from_slice(s.as_bytes());
+        self.out.push(0);
+    }
+    /// The string `rod<rod><suffix>`, formatted in place.
+    fn joint_name(&mut self, rod: u32, suffix: &str) {
+        let mut digits = [0u8; 10];
+        let (mut k, mut i) = (rod, digits.len());
+        loop {
+            i -= 1;
+            digits[i] = b'0' + (k % 10) as u8;
+            k /= 10;
+            if k == 0 {
+                break;
+            }
+        }
+        let len = 3 + (digits.len() - i) + suffix.len();
+        self.u32(len as u32 + 1);
+        self.out.extend_from_slice(b"rod");
+        self.out.extend_from_slice(&digits[i..]);
+        self.out.extend_from_slice(suffix.as_bytes());
         self.out.push(0);
     }
     fn f64s(&mut self, v: &[f64]) {
@@ -287,6 +355,39 @@ pub fn ros_name_token(s: &str) -> String {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn rows_written_straight_to_cdr_are_the_joint_states_bytes() {
+        use rodtrack_core::{CameraId, Timestamp};
+        let row = |rod: u32, status: Status, position_mm: f64| Measurement {
+            position_mm,
+            velocity_mm_s: -3.5 * position_mm,
+            angle_unwrapped_rad: 0.25 * rod as f64 - 7.0,
+            angular_velocity_rad_s: 40.0,
+            ..Measurement::empty(5, Timestamp(3_000_000_123), CameraId::Fused, rod, status)
+        };
+        for rows in [
+            vec![],
+            vec![row(3, Status::Occluded, 1.0)],
+            vec![
+                row(0, Status::Ok, 12.5),
+                row(7, Status::Occluded, 3.0),
+                row(12, Status::Predicted, -170.25),
+                row(1234567, Status::Conflict, f64::NAN),
+                row(4, Status::Ok, f64::INFINITY),
+            ],
+        ] {
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            JointState::of_rows(&rows, 3_000_000_123, "rodtrack/t".into()).to_cdr(&mut a);
+            JointState::rows_to_cdr(rows.iter(), 3_000_000_123, "rodtrack/t", &mut b);
+            assert_eq!(a, b, "{} rows", rows.len());
+            assert!(JointState::from_cdr(&b).is_ok());
+            // Written again into the grown buffer: no allocation.
+            let at = b.as_ptr();
+            JointState::rows_to_cdr(rows.iter(), 3_000_000_123, "rodtrack/t", &mut b);
+            assert_eq!((at, &a), (b.as_ptr(), &b));
+        }
+    }
 
     #[test]
     fn a_joint_state_has_the_cdr_layout_byte_for_byte() {
