@@ -13,10 +13,14 @@ not rodtrack's:
 - the liveliness tokens parse as rmw_zenoh's graph cache parses them (`Entity::make` from a key
   expression): a node token (`NN`) and a publisher token (`MP`) of the same session and node,
   the topic, type, hash and QoS (every policy at rmw_zenoh's default) as above;
-- every payload decodes with rosbags' CDR reader as sensor_msgs/msg/JointState and rosbags
-  serialises it back to the same bytes; two joints per rod, finite values.
-Usage: python ros2_zenoh.py ENDPOINT SECONDS DOMAIN TOPIC NODE RODS (RODS: the rods every run
-must show, 0..RODS-1; 0: at least one)"""
+- every payload decodes with rosbags' CDR reader as the topic's type and rosbags serialises it
+  back to the same bytes; a joint state has two joints per rod, finite values; the ball's
+  place (geometry_msgs/msg/PointStamped) and velocity (geometry_msgs/msg/Vector3Stamped) are
+  finite, in the table frame (`rodtrack/<table>`), the place on the table at the ball's
+  height.
+Usage: python ros2_zenoh.py ENDPOINT SECONDS DOMAIN TOPIC NODE RODS [TYPE] (RODS: the rods every
+run must show, 0..RODS-1; 0: at least one; TYPE: the topic's ROS 2 type, default
+sensor_msgs/msg/JointState)"""
 import json
 import math
 import sys
@@ -30,10 +34,12 @@ from zenoh.ext import Int64, UInt8, declare_advanced_subscriber, z_deserialize
 
 endpoint, seconds, domain, topic, node, n_rods = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5], int(sys.argv[6])
 JS = "sensor_msgs/msg/JointState"
+ros_type = sys.argv[7] if len(sys.argv) > 7 else JS
 humble, jazzy = get_typestore(Stores.ROS2_HUMBLE), get_typestore(Stores.ROS2_JAZZY)
-type_hash = humble.hash_rihs01(JS)
-assert type_hash == jazzy.hash_rihs01(JS), "Humble's and Jazzy's JointState differ"
-dds_type = "sensor_msgs::msg::dds_::JointState_"
+type_hash = humble.hash_rihs01(ros_type)
+assert type_hash == jazzy.hash_rihs01(ros_type), f"Humble's and Jazzy's {ros_type} differ"
+package, _, type_name = ros_type.split("/")
+dds_type = f"{package}::msg::dds_::{type_name}_"
 key = f"{domain}/{topic.strip('/')}/{dds_type}/{type_hash}"
 
 samples, lock = [], threading.Lock()
@@ -68,8 +74,9 @@ for t in tokens:
         assert len(p) == 13, f"a publisher token has 13 parts: {t}"
         qos = p[12].split(":")
         assert len(qos) == 6 and qos == QOS_DEFAULTS, f"QoS {p[12]}: rmw_zenoh's defaults expected"
-        pubs.append((t, p))
-assert len(pubs) == 1, f"one publisher token expected, got {tokens}"
+        if p[9].replace("%", "/") == topic:
+            pubs.append((t, p))
+assert len(pubs) == 1, f"one publisher token of {topic} expected, got {tokens}"
 pub_token, p = pubs[0]
 assert (p[2], p[3]) in nodes, f"no node token of session {p[2]}, node {p[3]}: {tokens}"
 assert nodes[(p[2], p[3])] == node and p[8] == node, f"node {node} expected: {pub_token}"
@@ -86,8 +93,18 @@ for k, payload, att, recv_ns in samples:
     assert bytes(sample_gid) == gid, "the attachment's GID is not the publisher token's hash"
     assert abs(recv_ns - stamp_ns) < 5e9, f"source timestamp {stamp_ns} vs received {recv_ns}"
     seqs.append(seq)
-    msg = humble.deserialize_cdr(payload, JS)
-    assert humble.serialize_cdr(msg, JS) == payload, "rosbags serialises the message differently"
+    msg = humble.deserialize_cdr(payload, ros_type)
+    assert humble.serialize_cdr(msg, ros_type) == payload, "rosbags serialises the message differently"
+    if ros_type != JS:
+        table = topic.split("/")[2]
+        assert msg.header.frame_id == f"rodtrack/{table}", msg.header.frame_id
+        v = msg.point if hasattr(msg, "point") else msg.vector
+        assert all(math.isfinite(c) for c in (v.x, v.y, v.z)), v
+        if hasattr(msg, "point"):
+            assert abs(v.x) < 1.0 and abs(v.y) < 0.5 and 0.005 < v.z < 0.05, f"ball at {v} m"
+        else:
+            assert abs(v.x) < 20.0 and abs(v.y) < 20.0 and v.z == 0.0, f"ball velocity {v} m/s"
+        continue
     assert len(msg.name) == len(msg.position) == len(msg.velocity) and len(msg.effort) == 0
     assert all(math.isfinite(v) for v in list(msg.position) + list(msg.velocity))
     for i in range(0, len(msg.name), 2):
@@ -96,6 +113,8 @@ for k, payload, att, recv_ns in samples:
         assert abs(msg.position[i]) < 1.0, f"rod {rod}: slide {msg.position[i]} m"
         names.add(int(rod))
 assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), "sequence numbers must go up by one"
-assert names == set(range(n_rods)) if n_rods else names, f"rods {sorted(names)}"
-print(f"ROS 2 over rmw_zenoh: {len(samples)} JointState samples on {key}, sequence {seqs[0]}..{seqs[-1]}, "
-      f"attachments and GID as rmw_zenoh's, node '{nodes[(p[2], p[3])]}' and publisher tokens, rods {min(names)}..{max(names)}")
+if ros_type == JS:
+    assert names == set(range(n_rods)) if n_rods else names, f"rods {sorted(names)}"
+what = f"rods {min(names)}..{max(names)}" if ros_type == JS else "values finite, in the table frame"
+print(f"ROS 2 over rmw_zenoh: {len(samples)} {type_name} samples on {key}, sequence {seqs[0]}..{seqs[-1]}, "
+      f"attachments and GID as rmw_zenoh's, node '{nodes[(p[2], p[3])]}' and publisher tokens, {what}")

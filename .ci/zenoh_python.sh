@@ -5,10 +5,11 @@
 # fusion node listening on an explicit tcp/127.0.0.1 endpoint and two camera nodes on
 # real-time sim:// sources connecting to it, multicast scouting off. The subscribers run for a
 # bounded time; each one's output must hold every rod, finite positions and increasing frame
-# ids. The fusion node also publishes for ROS 2 over rmw_zenoh (--ros2-domain 0), camera node 0
-# too (--ros2-domain 1), each checked by
-# .ci/ros2_zenoh.py against rmw_zenoh's rules (key expression, attachment, liveliness tokens,
-# CDR through rosbags). Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
+# ids. The camera nodes track the ball too (--zenoh-ball, the simulator's `ball` scenario). The
+# fusion node also publishes for ROS 2 over rmw_zenoh (--ros2-domain 0: joint states, the
+# ball's place and velocity), camera node 0 too (--ros2-domain 1: its joint states and its
+# ball's place), each topic checked by .ci/ros2_zenoh.py against rmw_zenoh's rules (key
+# expression, attachment, liveliness tokens, CDR through rosbags). Uses the release binary built with the feature `zenoh` (RODTRACK_BIN, default
 # target/release/rodtrack) and the example built beside it (RODTRACK_EXAMPLE, default
 # target/release/examples/fused_subscriber); started by .ci/zenoh.sh.
 set -euo pipefail
@@ -44,8 +45,8 @@ pids+=($!)
 t0=$(( $(date +%s%3N) + 4000 ))
 for cam in 0 1; do
   "$bin" track --calib "$tmp/c.toml" --camera "cam$cam" \
-      --input "sim://exp3?camera=$cam&frames=20&loop=1&prerender=20&realtime=1&trigger_unix_ms=$t0" \
-      --max-frames 1200 --publish zenoh --zenoh-connect "$endpoint" $( [ $cam = 0 ] && echo --ros2-domain 1 ) \
+      --input "sim://ball?camera=$cam&frames=20&loop=1&prerender=20&realtime=1&trigger_unix_ms=$t0" \
+      --max-frames 1200 --publish zenoh --zenoh-ball --zenoh-connect "$endpoint" $( [ $cam = 0 ] && echo --ros2-domain 1 ) \
       2>"$tmp/cam$cam.err" &
   pids+=($!)
 done
@@ -53,18 +54,27 @@ done
 logs() { tail -n 5 "$tmp/sub.txt" "$tmp/sub_rs.txt" "$tmp/fuse.err" "$tmp/cam0.err" "$tmp/cam1.err"; }
 timeout 30 "$example" "$endpoint" 8 >"$tmp/sub_rs.txt" 2>&1 &
 rust_sub=$!
-timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 0 /rodtrack/default/joint_states \
-    rodtrack_fusion_default 8 >"$tmp/ros2.txt" 2>&1 &
-ros2_sub=$!
-timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 1 /rodtrack/default/cam/cam0/joint_states \
-    rodtrack_camera_default_cam0 0 >"$tmp/ros2_cam.txt" 2>&1 &
-ros2_cam=$!
+# Each ROS 2 topic: "domain topic node rods [type]" (.ci/ros2_zenoh.py's arguments).
+ros2_topics=(
+  "0 /rodtrack/default/joint_states rodtrack_fusion_default 8"
+  "0 /rodtrack/default/ball rodtrack_fusion_default 0 geometry_msgs/msg/PointStamped"
+  "0 /rodtrack/default/ball/velocity rodtrack_fusion_default 0 geometry_msgs/msg/Vector3Stamped"
+  "1 /rodtrack/default/cam/cam0/joint_states rodtrack_camera_default_cam0 0"
+  "1 /rodtrack/default/cam/cam0/ball rodtrack_camera_default_cam0 0 geometry_msgs/msg/PointStamped"
+)
+ros2_pids=()
+for i in "${!ros2_topics[@]}"; do
+  # shellcheck disable=SC2086 # the topic's arguments, split on purpose
+  timeout 40 "$venv/bin/python" .ci/ros2_zenoh.py "$endpoint" 8 ${ros2_topics[$i]} >"$tmp/ros2_$i.txt" 2>&1 &
+  ros2_pids+=($!)
+done
 timeout 30 "$venv/bin/python" python/examples/zenoh_subscriber.py "$endpoint" 8 >"$tmp/sub.txt" \
   || { echo "the Python subscriber failed"; logs; exit 1; }
 wait "$rust_sub" || { echo "the Rust subscriber failed"; logs; exit 1; }
-wait "$ros2_sub" || { echo "the ROS 2 (rmw_zenoh) check of the fusion node failed"; cat "$tmp/ros2.txt"; logs; exit 1; }
-wait "$ros2_cam" || { echo "the ROS 2 (rmw_zenoh) check of camera node 0 failed"; cat "$tmp/ros2_cam.txt"; logs; exit 1; }
-cat "$tmp/ros2.txt" "$tmp/ros2_cam.txt"
+for i in "${!ros2_topics[@]}"; do
+  wait "${ros2_pids[$i]}" || { echo "the ROS 2 (rmw_zenoh) check of ${ros2_topics[$i]} failed"; cat "$tmp/ros2_$i.txt"; logs; exit 1; }
+  cat "$tmp/ros2_$i.txt"
+done
 
 for who in python:sub.txt rust:sub_rs.txt; do
 "$venv/bin/python" - "${who%%:*}" "$tmp/${who#*:}" <<'PY' || { logs; exit 1; }

@@ -7,14 +7,16 @@
 //! preview rate, the hooks also publish a downscaled image of the camera's latest frame on
 //! `.../preview` that many times per second (module `camera_preview`).
 //! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`. With a ROS 2
-//! domain the filtered rows also go out as `sensor_msgs/msg/JointState` ([`crate::ros2`]).
+//! domain the filtered rows also go out as `sensor_msgs/msg/JointState`, and the ball rows as
+//! `geometry_msgs/msg/PointStamped` and `Vector3Stamped` ([`crate::ros2`]).
 
 use crate::camera_preview::PreviewFeed;
 use crate::layout::{camera_bit, Header, Kind};
 use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
-use crate::ros2::{Ros2Names, Ros2Publisher};
+use crate::ros2::{Ros2BallPublisher, Ros2Names, Ros2Node, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::ball::BallRow;
+use rodtrack_core::CameraId;
 use rodtrack_core::{CameraPipeline, Measurement, Timestamp};
 use rodtrack_io::{BallSink, FrameBuffer, FrameMeta, IoError, MeasurementSink};
 use rodtrack_sdk::{Hooks, Progress};
@@ -30,6 +32,7 @@ pub struct CameraNode {
     ball: RowPublisher,
     status: RowPublisher,
     ros2: Option<Ros2Publisher>,
+    ros2_ball: Option<Ros2BallPublisher>,
     preview: Option<PreviewFeed>,
     _session: zenoh::Session,
     table: String,
@@ -47,13 +50,16 @@ impl CameraNode {
     /// the camera's in the calibration; `preview_fps`: preview frames per second on
     /// `.../preview` (0: none); `ros2_domain`: also publish the filtered rows for ROS 2 over
     /// rmw_zenoh in that domain ([`crate::ros2`], topic
-    /// `/rodtrack/<table>/cam/<camera>/joint_states`).
+    /// `/rodtrack/<table>/cam/<camera>/joint_states`), and, with `ball_diameter_mm` (the
+    /// ball's, when the node publishes its ball rows), the ball rows on `.../ball` and
+    /// `.../ball/velocity` of that node.
     pub fn open(
         net: &NetworkOptions,
         name: &str,
         index: u32,
         preview_fps: f64,
         ros2_domain: Option<u32>,
+        ball_diameter_mm: Option<f64>,
     ) -> Result<Arc<CameraNode>, ZenohError> {
         let table = net.table()?.to_string();
         check_chunk("camera name", name)?;
@@ -74,12 +80,21 @@ impl CameraNode {
                 preview_fps,
             )?)
         };
-        let ros2 = match &ros2_names {
-            Some(n) => Some(Ros2Publisher::declare(&session, n)?),
+        let ros2_node = match &ros2_names {
+            Some(n) => Some(Ros2Node::declare(&session, n)?),
             None => None,
+        };
+        let ros2 = match &ros2_node {
+            Some(node) => Some(Ros2Publisher::declare(&session, node)?),
+            None => None,
+        };
+        let ros2_ball = match (&ros2_node, ball_diameter_mm) {
+            (Some(node), Some(d)) => Some(Ros2BallPublisher::declare(&session, node, d)?),
+            _ => None,
         };
         Ok(Arc::new(CameraNode {
             ros2,
+            ros2_ball,
             rows: decl("rows", net.format)?,
             raw: decl("raw", net.format)?,
             ball: decl("ball", net.format)?,
@@ -219,11 +234,29 @@ impl BallSink for CameraBallSink {
     }
     fn write_sigma(&mut self, rows: &[BallRow], sigma_mm: &[f64]) -> Result<(), IoError> {
         let n = &self.node;
-        n.count(n.ball.publish_ball(rows, sigma_mm))
+        let result = n
+            .count(n.ball.publish_ball(rows, sigma_mm))
             .map_err(|e| IoError::Net {
                 addr: n.ball.key().to_string(),
                 source: std::io::Error::other(e.to_string()),
-            })
+            });
+        // After rodtrack's own ball rows, as the joint states after the rows.
+        let Some(p) = &n.ros2_ball else {
+            return result;
+        };
+        let mut ros2_result = Ok(());
+        for r in rows
+            .iter()
+            .filter(|r| r.camera == CameraId::Camera(n.index))
+        {
+            if let Err(e) = n.count(p.publish(r).map(|_| ())) {
+                ros2_result = ros2_result.and(Err(IoError::Net {
+                    addr: "ROS 2 ball topics".to_string(),
+                    source: std::io::Error::other(e.to_string()),
+                }));
+            }
+        }
+        result.and(ros2_result)
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())

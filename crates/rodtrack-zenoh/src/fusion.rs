@@ -18,7 +18,7 @@
 
 use crate::layout::{camera_bit, decode, Header, Kind, Message};
 use crate::net::{camera_key, fused_key, NetworkOptions, RowPublisher, WireFormat};
-use crate::ros2::{Ros2Names, Ros2Publisher};
+use crate::ros2::{Ros2BallPublisher, Ros2Names, Ros2Node, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::calib::CalibrationFile;
 use rodtrack_core::{CameraFilter, CameraId, Measurement, Mode, PixelFormat, SetFusion};
@@ -406,6 +406,26 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         counters: OnceLock::new(),
     });
     let session = net.open()?;
+    // The ROS 2 node first, its joint states' publisher its entity 1, then the ball's.
+    let ros2_node = match options.ros2_domain {
+        Some(domain) => Some(Ros2Node::declare(
+            &session,
+            &Ros2Names::fused(domain, &table)?,
+        )?),
+        None => None,
+    };
+    let ros2 = match &ros2_node {
+        Some(node) => Some(Ros2Publisher::declare(&session, node)?),
+        None => None,
+    };
+    let ball_diameter_mm = cal
+        .cameras
+        .iter()
+        .find_map(|c| c.ball.as_ref().map(|b| b.diameter_mm));
+    let ros2_ball = match (&ros2_node, ball_diameter_mm) {
+        (Some(node), Some(d)) => Some(Ros2BallPublisher::declare(&session, node, d)?),
+        _ => None,
+    };
     let ball_cameras: Vec<(String, u32)> = cal
         .cameras
         .iter()
@@ -421,6 +441,7 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
             ball_cameras,
             options.loss_periods.ceil() as u64,
             options.publish.then_some(net.format),
+            ros2_ball,
             ball,
             log.clone(),
         )?)
@@ -557,13 +578,6 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         )?)
     } else {
         None
-    };
-    let ros2 = match options.ros2_domain {
-        Some(domain) => Some(Ros2Publisher::declare(
-            &session,
-            &Ros2Names::fused(domain, &table)?,
-        )?),
-        None => None,
     };
     let status = RowPublisher::declare(&session, fused_key(&table, "status"), WireFormat::Json)?;
     let done = Arc::new(AtomicBool::new(false));

@@ -20,6 +20,8 @@
 //! | `rodtrack/<table>/fused/status` | the fusion node's counters and each camera's state, once a second | JSON |
 //! | `<domain>/rodtrack/<table>/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_...` | the fused rods for ROS 2 over rmw_zenoh (`fuse --ros2-domain`), with rmw_zenoh's attachment and liveliness tokens | CDR (`ros2`) |
 //! | `<domain>/rodtrack/<table>/cam/<camera>/joint_states/...` (the same type and hash) | a camera node's rods for ROS 2 over rmw_zenoh (`track --publish zenoh --ros2-domain`) | CDR (`ros2`) |
+//! | `<domain>/rodtrack/<table>/ball/geometry_msgs::msg::dds_::PointStamped_/RIHS01_...` | the fused ball's centre for ROS 2 (`fuse --ros2-domain`, a calibration with a ball); a camera node's on `.../cam/<camera>/ball/...` (`--zenoh-ball`) | CDR (`ros2`) |
+//! | `<domain>/rodtrack/<table>/ball/velocity/geometry_msgs::msg::dds_::Vector3Stamped_/RIHS01_...` | the fused ball's velocity for ROS 2; a camera node's on `.../cam/<camera>/ball/velocity/...` | CDR (`ros2`) |
 //!
 //! Layout:
 //! - `layout`: the messages (binary layout version 1 and its JSON variant), no zenoh in it;
@@ -33,8 +35,9 @@
 //! - `monitor`: a remote console's subscriber to every node of a table (rows, statuses,
 //!   previews), decoded, malformed messages counted;
 //! - `replay`: an MCAP recording's rows published again in real time, on the same keys;
-//! - `ros2`: the fused rows as ROS 2 `sensor_msgs/msg/JointState` over rmw_zenoh (its key
-//!   expression, attachment and liveliness tokens);
+//! - `ros2`: the fused rows as ROS 2 `sensor_msgs/msg/JointState` and the ball as
+//!   `geometry_msgs/msg/PointStamped` and `Vector3Stamped` over rmw_zenoh (their key
+//!   expressions, attachments and liveliness tokens);
 //! - `subscriber`: a program's subscriber to the rows (the fused rows of a table), decoded
 //!   (the example `fused_subscriber` prints each rod's fused position through it).
 

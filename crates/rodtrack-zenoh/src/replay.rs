@@ -8,7 +8,7 @@
 
 use crate::layout::{camera_bit, Kind};
 use crate::net::{NetworkOptions, RowPublisher};
-use crate::ros2::{Ros2Names, Ros2Publisher};
+use crate::ros2::{Ros2Names, Ros2Node, Ros2Publisher};
 use crate::ZenohError;
 use rodtrack_core::{CameraId, Measurement};
 use rodtrack_io::mcap::{parse_rows_message, McapFile, ROWS_SCHEMA_NAME};
@@ -160,10 +160,8 @@ pub fn replay(
                         "the recording has no fused rows (rodtrack/<table>/fused/rows) to publish for ROS 2".into(),
                     )
                 })?;
-            Some(Ros2Publisher::declare(
-                &session,
-                &Ros2Names::fused(domain, table)?,
-            )?)
+            let node = Ros2Node::declare(&session, &Ros2Names::fused(domain, table)?)?;
+            Some(Ros2Publisher::declare(&session, &node)?)
         }
         None => None,
     };

@@ -1,6 +1,8 @@
 //! ROS 2 over rmw_zenoh: the fused rows (or a camera node's) as `sensor_msgs/msg/JointState`,
-//! published the way rmw_zenoh's own publishers do, so that a ROS 2 node on rmw_zenoh
-//! (`ros2 topic echo`, a controller) receives them from the same zenoh router.
+//! and the ball as `geometry_msgs/msg/PointStamped` with its velocity as
+//! `geometry_msgs/msg/Vector3Stamped`, published the way rmw_zenoh's own publishers do, so
+//! that a ROS 2 node on rmw_zenoh (`ros2 topic echo`, a controller) receives them from the
+//! same zenoh router.
 //!
 //! What a publisher of rmw_zenoh (`rmw_zenoh_cpp`, every release of Humble from 0.1.2, Jazzy
 //! from 0.2.4, Kilted, Lyrical and Rolling up to 0.12.0 alike) puts on the network, and what
@@ -18,7 +20,9 @@
 //!   (`ros2 node list`, `ros2 topic list -t`, `ros2 topic info`): the node's
 //!   `@ros2_lv/<domain>/<zid>/<node id>/<node id>/NN/<enclave>/<namespace>/<node name>`, the
 //!   publisher's `@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/...` with, after the node
-//!   name, `/<topic>/<type>/<hash>/<qos>`; each `/` inside a name written `%`; the QoS as
+//!   name, `/<topic>/<type>/<hash>/<qos>`; each `/` inside a name written `%`; a node's
+//!   publishers numbered from 1 after the node's own id 0, as rmw_zenoh's context numbers
+//!   its entities; the QoS as
 //!   rmw_zenoh writes it, a field left empty where it equals rmw_zenoh's default (reliable,
 //!   volatile, keep last 42, no deadline, lifespan or lease): `::,:,:,:,,` for this publisher,
 //!   which uses those defaults;
@@ -31,10 +35,11 @@
 //! samples was not run here (docs/network.md).
 
 use crate::ZenohError;
+use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::Measurement;
-use rodtrack_io::mcap::JointState;
-use std::sync::atomic::{AtomicI64, Ordering};
-use std::sync::Mutex;
+use rodtrack_io::mcap::{JointState, StampedXyz};
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
@@ -46,6 +51,32 @@ pub const JOINT_STATE_DDS_TYPE: &str = "sensor_msgs::msg::dds_::JointState_";
 /// Humble's and Jazzy's definitions.
 pub const JOINT_STATE_TYPE_HASH: &str =
     "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e";
+/// A ROS 2 message type as rmw_zenoh names it: its DDS form and its type hash (REP 2016,
+/// `RIHS01`; the same for ROS 2 Humble's and Jazzy's definitions of the types below).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ros2Type {
+    /// The type in its DDS form (`sensor_msgs::msg::dds_::JointState_`).
+    pub dds: &'static str,
+    /// The type hash (`RIHS01_<64 hex>`).
+    pub hash: &'static str,
+}
+
+/// `sensor_msgs/msg/JointState`.
+pub const JOINT_STATE: Ros2Type = Ros2Type {
+    dds: JOINT_STATE_DDS_TYPE,
+    hash: JOINT_STATE_TYPE_HASH,
+};
+/// `geometry_msgs/msg/PointStamped`.
+pub const POINT_STAMPED: Ros2Type = Ros2Type {
+    dds: "geometry_msgs::msg::dds_::PointStamped_",
+    hash: "RIHS01_4c0296af86e01e562e9e0405d138a01537247580076c58ea38d7923ac1045897",
+};
+/// `geometry_msgs/msg/Vector3Stamped`.
+pub const VECTOR3_STAMPED: Ros2Type = Ros2Type {
+    dds: "geometry_msgs::msg::dds_::Vector3Stamped_",
+    hash: "RIHS01_d4829622288cbb443886e7ea94ea5671a3b1be6bab4ad04224432a65f7d7887a",
+};
+
 /// The QoS part of the publisher's liveliness token: every policy at rmw_zenoh's default.
 pub const DEFAULT_QOS_KEYEXPR: &str = "::,:,:,:,,";
 /// The liveliness tokens' admin space.
@@ -60,8 +91,11 @@ pub struct Ros2Names {
     pub topic: String,
     /// The node's name: `rodtrack_fusion_<table>`.
     pub node: String,
-    /// The messages' `header.frame_id`: `rodtrack/<table>`.
+    /// The joint states' `header.frame_id`: `rodtrack/<table>` (a camera node's:
+    /// `rodtrack/<table>/cam/<camera>`).
     pub frame_id: String,
+    /// The table frame's id, the ball's `header.frame_id`: `rodtrack/<table>`.
+    pub table_frame: String,
 }
 
 impl Ros2Names {
@@ -75,6 +109,7 @@ impl Ros2Names {
             domain,
             format!("rodtrack/{table}"),
             format!("rodtrack_fusion_{table}"),
+            table,
         ))
     }
 
@@ -89,26 +124,46 @@ impl Ros2Names {
             domain,
             format!("rodtrack/{table}/cam/{camera}"),
             format!("rodtrack_camera_{table}_{camera}"),
+            table,
         ))
     }
 
     /// The names of a node whose joint states go on `/<prefix>/joint_states`, with the frame
     /// id `<prefix>`.
-    fn under(domain: u32, prefix: String, node: String) -> Ros2Names {
+    fn under(domain: u32, prefix: String, node: String, table: &str) -> Ros2Names {
         Ros2Names {
             domain,
             topic: format!("/{prefix}/joint_states"),
             node,
             frame_id: prefix,
+            table_frame: format!("rodtrack/{table}"),
         }
     }
 
-    /// The data's key expression.
+    /// The ball's topic, `/<prefix>/ball` (`geometry_msgs/msg/PointStamped`).
+    pub fn ball_topic(&self) -> String {
+        format!("/{}/ball", self.frame_id)
+    }
+
+    /// The ball's velocity's topic, `/<prefix>/ball/velocity`
+    /// (`geometry_msgs/msg/Vector3Stamped`).
+    pub fn ball_velocity_topic(&self) -> String {
+        format!("/{}/ball/velocity", self.frame_id)
+    }
+
+    /// The joint states' key expression.
     pub fn topic_keyexpr(&self) -> String {
+        self.keyexpr_of(&self.topic, JOINT_STATE)
+    }
+
+    /// The key expression of the data of `topic`, of type `ty`.
+    pub fn keyexpr_of(&self, topic: &str, ty: Ros2Type) -> String {
         format!(
-            "{}/{}/{JOINT_STATE_DDS_TYPE}/{JOINT_STATE_TYPE_HASH}",
+            "{}/{}/{}/{}",
             self.domain,
-            strip_slashes(&self.topic)
+            strip_slashes(topic),
+            ty.dds,
+            ty.hash
         )
     }
 
@@ -121,14 +176,28 @@ impl Ros2Names {
         )
     }
 
-    /// The publisher's liveliness token (`MP`), with the session's id, the node's id and the
-    /// publisher's entity id.
+    /// The joint states' publisher's liveliness token (`MP`), with the session's id, the
+    /// node's id and the publisher's entity id.
     pub fn publisher_token(&self, zid: &str, node_id: u64, entity_id: u64) -> String {
+        self.publisher_token_of(zid, node_id, entity_id, &self.topic, JOINT_STATE)
+    }
+
+    /// The liveliness token (`MP`) of a publisher of `topic`, of type `ty`.
+    pub fn publisher_token_of(
+        &self,
+        zid: &str,
+        node_id: u64,
+        entity_id: u64,
+        topic: &str,
+        ty: Ros2Type,
+    ) -> String {
         format!(
-            "{ADMIN_SPACE}/{}/{zid}/{node_id}/{entity_id}/MP/%/%/{}/{}/{JOINT_STATE_DDS_TYPE}/{JOINT_STATE_TYPE_HASH}/{DEFAULT_QOS_KEYEXPR}",
+            "{ADMIN_SPACE}/{}/{zid}/{node_id}/{entity_id}/MP/%/%/{}/{}/{}/{}/{DEFAULT_QOS_KEYEXPR}",
             self.domain,
             mangle(&self.node),
-            mangle(&self.topic)
+            mangle(topic),
+            ty.dds,
+            ty.hash
         )
     }
 }
@@ -194,52 +263,123 @@ pub fn attachment(
     a
 }
 
-/// Publishes fused rows as `sensor_msgs/msg/JointState` for ROS 2 over rmw_zenoh, with the
-/// node's and the publisher's liveliness tokens held while it lives.
-pub struct Ros2Publisher {
+/// A ROS 2 node in the graph: its liveliness token (`NN`, node id 0), held while it or any of
+/// its publishers lives, and the entity ids its publishers take (1, 2, ...).
+pub struct Ros2Node {
+    names: Ros2Names,
+    zid: String,
+    _token: LivelinessToken,
+    next_entity: AtomicU64,
+}
+
+/// The node's id in its tokens: a node's process holds one node.
+const NODE_ID: u64 = 0;
+
+impl Ros2Node {
+    /// Declares the node's token on `session`.
+    pub fn declare(
+        session: &zenoh::Session,
+        names: &Ros2Names,
+    ) -> Result<Arc<Ros2Node>, ZenohError> {
+        let zid = session.zid().to_string();
+        let token = declare_token(session, &names.node_token(&zid, NODE_ID))?;
+        Ok(Arc::new(Ros2Node {
+            names: names.clone(),
+            zid,
+            _token: token,
+            next_entity: AtomicU64::new(NODE_ID + 1),
+        }))
+    }
+
+    /// The node's names.
+    pub fn names(&self) -> &Ros2Names {
+        &self.names
+    }
+}
+
+fn declare_token(session: &zenoh::Session, key: &str) -> Result<LivelinessToken, ZenohError> {
+    session
+        .liveliness()
+        .declare_token(key.to_string())
+        .wait()
+        .map_err(|e| ZenohError::zenoh(format!("declaring the ROS 2 liveliness token {key}"), e))
+}
+
+/// One topic's publisher of a [`Ros2Node`]: its liveliness token, its GID and its sequence.
+struct Ros2Topic {
     publisher: Publisher<'static>,
-    _tokens: [LivelinessToken; 2],
+    _token: LivelinessToken,
+    _node: Arc<Ros2Node>,
     gid: [u8; 16],
     seq: AtomicI64,
+}
+
+impl Ros2Topic {
+    fn declare(
+        session: &zenoh::Session,
+        node: &Arc<Ros2Node>,
+        topic: &str,
+        ty: Ros2Type,
+    ) -> Result<Ros2Topic, ZenohError> {
+        let entity_id = node.next_entity.fetch_add(1, Ordering::Relaxed);
+        let token_key = node
+            .names
+            .publisher_token_of(&node.zid, NODE_ID, entity_id, topic, ty);
+        let token = declare_token(session, &token_key)?;
+        let key = node.names.keyexpr_of(topic, ty);
+        // Reliable (zenoh's default), as rmw_zenoh's publishers of the default QoS. It blocks
+        // rather than drops when the network is congested, as rodtrack's own publishers on the
+        // same links do (rmw_zenoh's keep-last publishers drop): zenoh discards a droppable
+        // message still queued when the session closes, and a node's last message was lost
+        // that way at its end.
+        let publisher = session
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Block)
+            .express(true)
+            .wait()
+            .map_err(|e| ZenohError::zenoh(format!("declaring the ROS 2 publisher on {key}"), e))?;
+        Ok(Ros2Topic {
+            publisher,
+            _token: token,
+            _node: node.clone(),
+            gid: gid_of(&token_key),
+            seq: AtomicI64::new(1),
+        })
+    }
+
+    /// Puts one message (CDR) with its attachment.
+    fn put(&self, cdr: &[u8]) -> Result<(), ZenohError> {
+        let now_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX));
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        self.publisher
+            .put(cdr)
+            .attachment(attachment(seq, now_ns, &self.gid).as_slice())
+            .wait()
+            .map_err(|e| {
+                ZenohError::zenoh(format!("publishing on {}", self.publisher.key_expr()), e)
+            })
+    }
+}
+
+/// Publishes fused rows as `sensor_msgs/msg/JointState` for ROS 2 over rmw_zenoh, on the
+/// node's joint states topic.
+pub struct Ros2Publisher {
+    topic: Ros2Topic,
     frame_id: String,
     cdr: Mutex<Vec<u8>>,
 }
 
 impl Ros2Publisher {
-    /// Declares the publisher and its tokens on `session`.
+    /// Declares the joint states' publisher of `node` on `session`.
     pub fn declare(
         session: &zenoh::Session,
-        names: &Ros2Names,
+        node: &Arc<Ros2Node>,
     ) -> Result<Ros2Publisher, ZenohError> {
-        let zid = session.zid().to_string();
-        let (node_id, entity_id) = (0, 1);
-        let node_token = names.node_token(&zid, node_id);
-        let pub_token = names.publisher_token(&zid, node_id, entity_id);
-        let key = names.topic_keyexpr();
-        let declare_token = |k: &str| {
-            session
-                .liveliness()
-                .declare_token(k.to_string())
-                .wait()
-                .map_err(|e| {
-                    ZenohError::zenoh(format!("declaring the ROS 2 liveliness token {k}"), e)
-                })
-        };
-        let tokens = [declare_token(&node_token)?, declare_token(&pub_token)?];
-        // As rmw_zenoh's publisher of a reliable, keep-last topic (zenoh's publishers are
-        // reliable by default).
-        let publisher = session
-            .declare_publisher(key.clone())
-            .congestion_control(CongestionControl::Drop)
-            .express(true)
-            .wait()
-            .map_err(|e| ZenohError::zenoh(format!("declaring the ROS 2 publisher on {key}"), e))?;
         Ok(Ros2Publisher {
-            publisher,
-            _tokens: tokens,
-            gid: gid_of(&pub_token),
-            seq: AtomicI64::new(1),
-            frame_id: names.frame_id.clone(),
+            topic: Ros2Topic::declare(session, node, &node.names.topic, JOINT_STATE)?,
+            frame_id: node.names.frame_id.clone(),
             cdr: Mutex::new(Vec::with_capacity(1024)),
         })
     }
@@ -257,15 +397,7 @@ impl Ros2Publisher {
             &self.frame_id,
             &mut cdr,
         );
-        let now_ns = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX));
-        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
-        self.publisher
-            .put(cdr.as_slice())
-            .attachment(attachment(seq, now_ns, &self.gid).as_slice())
-            .wait()
-            .map_err(|e| ZenohError::zenoh(format!("publishing on {}", self.key()), e))
+        self.topic.put(&cdr)
     }
 
     /// Publishes one joint state per frame of `rows` (runs of rows with the same frame and
@@ -284,13 +416,78 @@ impl Ros2Publisher {
 
     /// The data's key expression.
     pub fn key(&self) -> &str {
-        self.publisher.key_expr().as_str()
+        self.topic.publisher.key_expr().as_str()
     }
 
     /// The publisher's GID (as in its samples' attachments).
     pub fn gid(&self) -> [u8; 16] {
-        self.gid
+        self.topic.gid
     }
+}
+
+/// Publishes a ball's rows for ROS 2 over rmw_zenoh: its centre as
+/// `geometry_msgs/msg/PointStamped` on `/<prefix>/ball` (m, the table frame: `z` the ball's
+/// radius above the field) and its velocity as `geometry_msgs/msg/Vector3Stamped` on
+/// `/<prefix>/ball/velocity` (m/s), both stamped with the frame's capture time and with the
+/// table frame's id. Only rows with a place go out, `ok` (seen) and `predicted` (a short
+/// occlusion, the filter's prediction); `lost` and `conflict` (cameras that disagree) rows
+/// send nothing, and the topics fall silent. The row's status stays on rodtrack's own key.
+pub struct Ros2BallPublisher {
+    position: Ros2Topic,
+    velocity: Ros2Topic,
+    frame_id: String,
+    centre_z_m: f64,
+    cdr: Mutex<Vec<u8>>,
+}
+
+impl Ros2BallPublisher {
+    /// Declares the ball's two publishers of `node` on `session`, for a ball of
+    /// `diameter_mm`.
+    pub fn declare(
+        session: &zenoh::Session,
+        node: &Arc<Ros2Node>,
+        diameter_mm: f64,
+    ) -> Result<Ros2BallPublisher, ZenohError> {
+        if !(diameter_mm.is_finite() && diameter_mm > 0.0) {
+            return Err(ZenohError::Invalid(format!(
+                "--ros2-domain: the ball's diameter {diameter_mm} mm is not a positive number"
+            )));
+        }
+        let n = &node.names;
+        Ok(Ros2BallPublisher {
+            position: Ros2Topic::declare(session, node, &n.ball_topic(), POINT_STAMPED)?,
+            velocity: Ros2Topic::declare(session, node, &n.ball_velocity_topic(), VECTOR3_STAMPED)?,
+            frame_id: n.table_frame.clone(),
+            centre_z_m: diameter_mm * 0.5e-3,
+            cdr: Mutex::new(Vec::with_capacity(64)),
+        })
+    }
+
+    /// Publishes `row` (its place, then its velocity) if it has a place; `Ok(false)` for a
+    /// row that sends nothing.
+    pub fn publish(&self, row: &BallRow) -> Result<bool, ZenohError> {
+        let Some((p, v)) = ball_place_and_velocity(row, self.centre_z_m) else {
+            return Ok(false);
+        };
+        let time_ns = row.timestamp_ns.as_nanos();
+        let mut cdr = self.cdr.lock().unwrap_or_else(|e| e.into_inner());
+        StampedXyz::write_cdr(time_ns, &self.frame_id, p, &mut cdr);
+        let first = self.position.put(&cdr);
+        StampedXyz::write_cdr(time_ns, &self.frame_id, v, &mut cdr);
+        let second = self.velocity.put(&cdr);
+        first.and(second).map(|()| true)
+    }
+}
+
+/// A ball row's place and velocity in m and m/s (the centre at `centre_z_m`), when it has a
+/// place (`ok`, `predicted`) and they are finite.
+fn ball_place_and_velocity(row: &BallRow, centre_z_m: f64) -> Option<([f64; 3], [f64; 3])> {
+    let (p, v) = (
+        [row.x_mm * 1e-3, row.y_mm * 1e-3, centre_z_m],
+        [row.vx_mm_s * 1e-3, row.vy_mm_s * 1e-3, 0.0],
+    );
+    let placed = matches!(row.status, BallStatus::Ok | BallStatus::Predicted);
+    (placed && p.iter().chain(&v).all(|x| x.is_finite())).then_some((p, v))
 }
 
 #[cfg(test)]
@@ -332,6 +529,62 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("camera name \"cam-0\""), "{e}");
+    }
+
+    #[test]
+    fn the_ball_goes_on_its_own_topics_of_the_same_node() {
+        let n = Ros2Names::camera(2, "lab", "cam1").unwrap();
+        assert_eq!(n.ball_topic(), "/rodtrack/lab/cam/cam1/ball");
+        assert_eq!(n.table_frame, "rodtrack/lab");
+        assert_eq!(
+            n.keyexpr_of(&n.ball_velocity_topic(), VECTOR3_STAMPED),
+            format!("2/rodtrack/lab/cam/cam1/ball/velocity/geometry_msgs::msg::dds_::Vector3Stamped_/{}", VECTOR3_STAMPED.hash)
+        );
+        let t = n.publisher_token_of("abc1", 0, 2, &n.ball_topic(), POINT_STAMPED);
+        let parts: Vec<&str> = t.split('/').collect();
+        assert_eq!(parts.len(), 13, "{t}");
+        assert_eq!((parts[3], parts[4], parts[5]), ("0", "2", "MP"));
+        assert_eq!(parts[8], "rodtrack_camera_lab_cam1");
+        assert_eq!(parts[9], "%rodtrack%lab%cam%cam1%ball");
+        assert_eq!(parts[10], "geometry_msgs::msg::dds_::PointStamped_");
+        // The joint states' token is the generic one's.
+        assert_eq!(
+            n.publisher_token("abc1", 0, 1),
+            n.publisher_token_of("abc1", 0, 1, &n.topic, JOINT_STATE)
+        );
+        assert_eq!(
+            Ros2Names::fused(0, "lab").unwrap().ball_topic(),
+            "/rodtrack/lab/ball"
+        );
+    }
+
+    #[test]
+    fn only_a_ball_with_a_finite_place_goes_out() {
+        use rodtrack_core::{CameraId, Timestamp};
+        let row = |status, x_mm: f64| BallRow {
+            x_mm,
+            y_mm: -250.0,
+            vx_mm_s: 1500.0,
+            vy_mm_s: -20.0,
+            quality: 1.0,
+            status,
+            ..BallRow::lost(3, Timestamp(15_000_000), CameraId::Fused)
+        };
+        let (p, v) = ball_place_and_velocity(&row(BallStatus::Ok, 120.0), 0.0175).unwrap();
+        assert_eq!(p, [0.12, -0.25, 0.0175]);
+        assert_eq!(v, [1.5, -0.02, 0.0]);
+        assert!(ball_place_and_velocity(&row(BallStatus::Predicted, 120.0), 0.0175).is_some());
+        for (status, x) in [
+            (BallStatus::Lost, 0.0),
+            (BallStatus::Conflict, 120.0),
+            (BallStatus::Ok, f64::NAN),
+            (BallStatus::Predicted, f64::INFINITY),
+        ] {
+            assert!(
+                ball_place_and_velocity(&row(status, x), 0.0175).is_none(),
+                "{status:?} {x}"
+            );
+        }
     }
 
     #[test]

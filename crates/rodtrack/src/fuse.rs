@@ -64,7 +64,10 @@ pub struct Args {
     pub mcap_compression: crate::recording::CompressionArg,
     /// With --publish zenoh: also publish the fused rods for ROS 2 over rmw_zenoh in this
     /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
-    /// `/rodtrack/<table>/joint_states` (docs/network.md).
+    /// `/rodtrack/<table>/joint_states`, and, when the calibration has a ball, the fused
+    /// ball as geometry_msgs/msg/PointStamped on `/rodtrack/<table>/ball` and its velocity as
+    /// geometry_msgs/msg/Vector3Stamped on `/rodtrack/<table>/ball/velocity`
+    /// (docs/network.md).
     #[arg(long, requires = "publish")]
     pub ros2_domain: Option<u32>,
     /// The network's endpoints and table.
@@ -160,6 +163,13 @@ fn run_node(args: Args) -> Result<()> {
             "ROS 2 (rmw_zenoh, domain {d}): sensor_msgs/msg/JointState on {}",
             names.topic
         );
+        if cal.cameras.iter().any(|c| c.ball.is_some()) {
+            eprintln!(
+                "ROS 2 (rmw_zenoh, domain {d}): the ball as geometry_msgs/msg/PointStamped on {}, its velocity as geometry_msgs/msg/Vector3Stamped on {}",
+                names.ball_topic(),
+                names.ball_velocity_topic()
+            );
+        }
     }
     let ball: Option<Box<dyn rodtrack_io::BallSink>> = match &args.ball_out {
         Some(path) => {

@@ -75,6 +75,7 @@ pub fn open_camera_node(
     index: u32,
     preview_fps: f64,
     ros2_domain: Option<u32>,
+    ball_diameter_mm: Option<f64>,
 ) -> Result<Node> {
     use anyhow::Context;
     let node = rodtrack_zenoh::camera::CameraNode::open(
@@ -83,6 +84,7 @@ pub fn open_camera_node(
         index,
         preview_fps,
         ros2_domain,
+        ball_diameter_mm,
     )
     .with_context(|| format!("camera {index} ({name}): joining the zenoh network"))?;
     eprintln!(
@@ -100,6 +102,7 @@ pub fn open_camera_node(
     _index: u32,
     _preview_fps: f64,
     _ros2_domain: Option<u32>,
+    _ball_diameter_mm: Option<f64>,
 ) -> Result<Node> {
     Err(no_zenoh())
 }

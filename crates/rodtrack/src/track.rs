@@ -98,8 +98,9 @@ pub struct Args {
     pub zenoh_ball: bool,
     /// With --publish zenoh: also publish this camera's rows for ROS 2 over rmw_zenoh in this
     /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
-    /// `/rodtrack/<table>/cam/<camera>/joint_states`: a table of one camera in ROS 2
-    /// (docs/network.md).
+    /// `/rodtrack/<table>/cam/<camera>/joint_states`: a table of one camera in ROS 2; with
+    /// --zenoh-ball its ball too, as geometry_msgs/msg/PointStamped on `.../<camera>/ball` and
+    /// geometry_msgs/msg/Vector3Stamped on `.../<camera>/ball/velocity` (docs/network.md).
     #[arg(long, requires = "publish")]
     pub ros2_domain: Option<u32>,
     /// The network's endpoints and table.
@@ -246,6 +247,11 @@ pub fn run(args: Args) -> Result<()> {
                 cam.index,
                 args.preview_fps,
                 args.ros2_domain,
+                // The ball goes to ROS 2 with the node's ball rows (--zenoh-ball).
+                cam.ball
+                    .as_ref()
+                    .filter(|_| args.zenoh_ball)
+                    .map(|b| b.diameter_mm),
             )?)
         }
         None => None,

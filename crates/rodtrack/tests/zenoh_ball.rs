@@ -1,10 +1,13 @@
 //! The ball on the camera network (feature `zenoh`): two camera nodes with `--zenoh-ball` on
 //! `sim://ball` sources and a fusion node with `--ball-out`, each its own `rodtrack` process on
-//! loopback; the fused ball rows must be those of one in-process session on the same frames.
+//! loopback; the fused ball rows must be those of one in-process session on the same frames,
+//! and go out for ROS 2 over rmw_zenoh as the fused rows say.
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
+use rodtrack_io::mcap::StampedXyz;
 use rodtrack_zenoh::ball_layout::decode_ball;
+use rodtrack_zenoh::ros2::{Ros2Names, ATTACHMENT_LEN, POINT_STAMPED, VECTOR3_STAMPED};
 use rodtrack_zenoh::zenoh::{self, Wait};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -18,6 +21,9 @@ use zenoh_common::{calibration, dir, free_port, run_ok, unix_ms, Proc};
 const PRERENDER: u32 = 40;
 /// From the nodes' start to the shared trigger's frame 0.
 const START_MS: u64 = 8000;
+
+/// The ROS 2 messages received on a topic: (sequence number, message).
+type Ros2Seen = Arc<Mutex<Vec<(i64, StampedXyz)>>>;
 
 fn sim(cam: u32, t0: Option<u64>) -> String {
     let base = format!("sim://ball?camera={cam}&frames={PRERENDER}&loop=1&prerender={PRERENDER}");
@@ -62,6 +68,8 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
             // No fault here: a camera late by a few frames on a loaded machine is waited for.
             "--loss-frames",
             "40",
+            "--ros2-domain",
+            "3",
         ]
         .map(String::from),
         t.join("fuse.err"),
@@ -88,6 +96,30 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
         .background()
         .wait()
         .unwrap();
+    // As an rmw_zenoh subscription of the ball's two topics: (sequence number, message).
+    let names = Ros2Names::fused(3, "default").unwrap();
+    let ros2: [Ros2Seen; 2] = Default::default();
+    for (topic, ty, sink) in [
+        (names.ball_topic(), POINT_STAMPED, ros2[0].clone()),
+        (
+            names.ball_velocity_topic(),
+            VECTOR3_STAMPED,
+            ros2[1].clone(),
+        ),
+    ] {
+        session
+            .declare_subscriber(names.keyexpr_of(&topic, ty))
+            .callback(move |sample| {
+                let a = sample.attachment().unwrap().to_bytes();
+                assert_eq!(a.len(), ATTACHMENT_LEN);
+                let seq = i64::from_le_bytes(a[..8].try_into().unwrap());
+                let m = StampedXyz::from_cdr(&sample.payload().to_bytes()).unwrap();
+                sink.lock().unwrap().push((seq, m));
+            })
+            .background()
+            .wait()
+            .unwrap();
+    }
     let t0 = unix_ms() + START_MS;
     let mut nodes: Vec<Proc> = (0..2u32)
         .map(|cam| {
@@ -151,6 +183,7 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
         got == want,
         "the network's ball rows differ from the in-process session's: missing {missing:?}, extra {extra:?}\n{log}"
     );
+    check_ros2(&ros2, &ball, &calib);
     let seen = seen.lock().unwrap();
     let frames: BTreeSet<u64> = seen.iter().map(|s| s.0).collect();
     assert_eq!(
@@ -162,4 +195,60 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
         seen.iter().all(|s| s.1 == 3),
         "both cameras and the fused row in each"
     );
+}
+
+/// Each fused ball row with a place (`ok`, `predicted`) went out once for ROS 2, in order:
+/// its centre in m at the ball's height, its velocity in m/s, stamped with its capture time, in
+/// the table frame; the sequence numbers go up by one from 1 on each topic.
+fn check_ros2(ros2: &[Ros2Seen; 2], ball_csv: &Path, calib: &Path) {
+    let toml = std::fs::read_to_string(calib).unwrap();
+    let diameter_mm: f64 = toml
+        .lines()
+        .find_map(|l| l.strip_prefix("diameter_mm = "))
+        .expect("the calibration's ball diameter")
+        .parse()
+        .unwrap();
+    // frame,timestamp_s,camera,x_mm,y_mm,vx_mm_s,vy_mm_s,quality,status
+    let placed: Vec<Vec<f64>> = std::fs::read_to_string(ball_csv)
+        .unwrap()
+        .lines()
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|c| c[2] == "fused" && (c[8] == "ok" || c[8] == "predicted"))
+        .map(|c| c[1..7].iter().filter_map(|v| v.parse().ok()).collect())
+        .collect();
+    assert!(
+        placed.len() > 100,
+        "{} fused rows with a place",
+        placed.len()
+    );
+    for (k, (what, unit)) in [("place", 1e-3), ("velocity", 1e-3)]
+        .into_iter()
+        .enumerate()
+    {
+        let got = ros2[k].lock().unwrap();
+        assert_eq!(got.len(), placed.len(), "ROS 2 {what} messages");
+        for (i, ((seq, m), row)) in got.iter().zip(&placed).enumerate() {
+            assert_eq!(*seq, i as i64 + 1, "{what}: sequence numbers from 1");
+            assert_eq!(m.frame_id, "rodtrack/default");
+            let stamp_s = f64::from(m.stamp_sec) + f64::from(m.stamp_nanosec) * 1e-9;
+            assert!(
+                (stamp_s - row[0]).abs() < 1e-6,
+                "{what} {i}: stamp {stamp_s} s, row {row:?}"
+            );
+            // The CSV's digits: 0.001 mm for the place, 0.1 mm/s for the velocity.
+            let (xy, tol, z) = if k == 0 {
+                ([row[1], row[2]], 0.0005 + 1e-9, diameter_mm / 2.0 * unit)
+            } else {
+                ([row[3], row[4]], 0.05 + 1e-9, 0.0)
+            };
+            for (j, v) in xy.iter().enumerate() {
+                assert!(
+                    (m.xyz[j] / unit - v).abs() <= tol,
+                    "{what} {i}: {:?} m, row {row:?}",
+                    m.xyz
+                );
+            }
+            assert_eq!(m.xyz[2], z, "{what} {i}");
+        }
+    }
 }

@@ -33,7 +33,7 @@ pub use record::{
     parse_rows_message, McapRecorder, McapSink, Profile, RecordOptions, RowsMessage, IMAGE_SCHEMA,
     IMAGE_SCHEMA_NAME, JOINTS_SCHEMA, JOINTS_SCHEMA_NAME, ROWS_SCHEMA, ROWS_SCHEMA_NAME,
 };
-pub use ros2::{JointState, JOINT_STATE_MSGDEF, JOINT_STATE_SCHEMA_NAME};
+pub use ros2::{JointState, StampedXyz, JOINT_STATE_MSGDEF, JOINT_STATE_SCHEMA_NAME};
 pub use write::{ChunkLimits, Compression, McapWriter, WriteSummary};
 
 /// The 8 bytes at the start and the end of an MCAP file.

@@ -170,17 +170,7 @@ impl JointState {
     /// Parses a joint state in CDR (either byte order); never allocates more than the
     /// message's size.
     pub fn from_cdr(data: &[u8]) -> Result<JointState, CdrError> {
-        let (header, body) = data.split_at_checked(4).ok_or(CdrError::Short(0))?;
-        let little = match header {
-            [0, 1, _, _] => true,
-            [0, 0, _, _] => false,
-            _ => return Err(CdrError::Encapsulation([header[0], header[1]])),
-        };
-        let mut r = CdrReader {
-            b: body,
-            at: 0,
-            little,
-        };
+        let mut r = CdrReader::of(data)?;
         let stamp_sec = r.u32()? as i32;
         let stamp_nanosec = r.u32()?;
         let frame_id = r.string()?;
@@ -200,6 +190,58 @@ impl JointState {
             position,
             velocity,
             effort,
+        })
+    }
+}
+
+/// A `geometry_msgs/msg/PointStamped` or `geometry_msgs/msg/Vector3Stamped`: a header and
+/// three `float64` (`point.x, y, z` or `vector.x, y, z`). The two messages have the same CDR
+/// layout.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StampedXyz {
+    /// `header.stamp.sec`, s.
+    pub stamp_sec: i32,
+    /// `header.stamp.nanosec`, ns.
+    pub stamp_nanosec: u32,
+    /// `header.frame_id`.
+    pub frame_id: String,
+    /// `x, y, z`.
+    pub xyz: [f64; 3],
+}
+
+impl StampedXyz {
+    /// The message in CDR, written into `out` (cleared first; no allocation once `out` has
+    /// grown to a message's size).
+    pub fn write_cdr(time_ns: u64, frame_id: &str, xyz: [f64; 3], out: &mut Vec<u8>) {
+        let mut stamp = JointState::default();
+        stamp.set_stamp_ns(time_ns);
+        out.clear();
+        out.extend_from_slice(&CDR_LE_HEADER);
+        let mut w = CdrWriter { out };
+        w.u32(stamp.stamp_sec as u32);
+        w.u32(stamp.stamp_nanosec);
+        w.string(frame_id);
+        w.align(8);
+        for v in xyz {
+            w.out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// Parses the message in CDR (either byte order).
+    pub fn from_cdr(data: &[u8]) -> Result<StampedXyz, CdrError> {
+        let mut r = CdrReader::of(data)?;
+        let stamp_sec = r.u32()? as i32;
+        let stamp_nanosec = r.u32()?;
+        let frame_id = r.string()?;
+        let mut xyz = [0.0; 3];
+        for v in &mut xyz {
+            *v = r.f64()?;
+        }
+        Ok(StampedXyz {
+            stamp_sec,
+            stamp_nanosec,
+            frame_id,
+            xyz,
         })
     }
 }
@@ -276,6 +318,20 @@ struct CdrReader<'a> {
 }
 
 impl<'a> CdrReader<'a> {
+    /// A reader of the body after `data`'s encapsulation header.
+    fn of(data: &'a [u8]) -> Result<CdrReader<'a>, CdrError> {
+        let (header, body) = data.split_at_checked(4).ok_or(CdrError::Short(0))?;
+        let little = match header {
+            [0, 1, _, _] => true,
+            [0, 0, _, _] => false,
+            _ => return Err(CdrError::Encapsulation([header[0], header[1]])),
+        };
+        Ok(CdrReader {
+            b: body,
+            at: 0,
+            little,
+        })
+    }
     fn align(&mut self, n: usize) {
         self.at = self.at.div_ceil(n).saturating_mul(n);
     }
@@ -318,6 +374,16 @@ impl<'a> CdrReader<'a> {
             }
             _ => Err(CdrError::BadString(at)),
         }
+    }
+    fn f64(&mut self) -> Result<f64, CdrError> {
+        self.align(8);
+        let at = self.at;
+        let b: [u8; 8] = self.take(8)?.try_into().map_err(|_| CdrError::Short(at))?;
+        Ok(if self.little {
+            f64::from_le_bytes(b)
+        } else {
+            f64::from_be_bytes(b)
+        })
     }
     fn f64s(&mut self) -> Result<Vec<f64>, CdrError> {
         let n = self.count(8)?;
@@ -386,6 +452,39 @@ mod tests {
             let at = b.as_ptr();
             JointState::rows_to_cdr(rows.iter(), 3_000_000_123, "rodtrack/t", &mut b);
             assert_eq!((at, &a), (b.as_ptr(), &b));
+        }
+    }
+
+    #[test]
+    fn a_stamped_vector_has_the_cdr_layout_byte_for_byte() {
+        let mut b = Vec::new();
+        StampedXyz::write_cdr(3_000_000_007, "ab", [1.5, -2.0, 0.25], &mut b);
+        let mut want = vec![0, 1, 0, 0];
+        want.extend_from_slice(&3u32.to_le_bytes()); // sec
+        want.extend_from_slice(&7u32.to_le_bytes()); // nanosec
+        want.extend_from_slice(&[3, 0, 0, 0, b'a', b'b', 0]); // frame_id "ab\0", ends at 15
+        want.push(0); // pad to 16 (8-aligned)
+        for v in [1.5f64, -2.0, 0.25] {
+            want.extend_from_slice(&v.to_le_bytes());
+        }
+        assert_eq!(b, want);
+        let m = StampedXyz::from_cdr(&b).unwrap();
+        assert_eq!(
+            (m.stamp_sec, m.stamp_nanosec, m.frame_id.as_str()),
+            (3, 7, "ab")
+        );
+        assert_eq!(m.xyz, [1.5, -2.0, 0.25]);
+        // Padding to the point's 8-byte alignment: 7 bytes after "abcd\0", none after an
+        // 11-letter id; a message cut short is an error, not a panic.
+        StampedXyz::write_cdr(0, "abcd", [0.0; 3], &mut b);
+        assert_eq!(b.len(), 4 + 8 + 4 + 5 + 7 + 24);
+        StampedXyz::write_cdr(0, "abcdefghijk", [0.0; 3], &mut b);
+        assert_eq!(b.len(), 4 + 8 + 4 + 12 + 24);
+        let at = b.as_ptr();
+        StampedXyz::write_cdr(0, "abcdefghijk", [1.0; 3], &mut b);
+        assert_eq!(at, b.as_ptr(), "written again without allocating");
+        for n in 0..b.len() {
+            assert!(StampedXyz::from_cdr(&b[..n]).is_err(), "{n} bytes");
         }
     }
 

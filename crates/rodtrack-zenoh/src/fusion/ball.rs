@@ -1,11 +1,13 @@
 //! The fusion node's ball: the camera nodes' ball rows (`.../cam/<camera>/ball`) put together
 //! per frame and fused exactly as in a session ([`BallSets`]), into the caller's ball sink and
 //! onto `rodtrack/<table>/fused/ball` (one message per frame: the cameras' rows, then the
-//! fused one). A camera that sends no ball rows (its node tracks no ball, or it is lost) is
+//! fused one), and the fused rows for ROS 2 when the node has a ROS 2 domain
+//! ([`Ros2BallPublisher`]). A camera that sends no ball rows (its node tracks no ball, or it is lost) is
 //! waited for at most the loss time in frames.
 
 use crate::ball_layout::decode_ball;
 use crate::net::{fused_key, RowPublisher};
+use crate::ros2::Ros2BallPublisher;
 use crate::ZenohError;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::CameraId;
@@ -39,9 +41,11 @@ pub struct BallReport {
     pub refused: u64,
 }
 
-/// The fused ball rows published on `.../fused/ball`, a message per frame, then the caller's.
+/// The fused ball rows published on `.../fused/ball`, a message per frame, and the fused row
+/// for ROS 2, then the caller's.
 struct Out {
     publisher: Option<RowPublisher>,
+    ros2: Option<Ros2BallPublisher>,
     inner: Option<Box<dyn BallSink>>,
 }
 
@@ -66,6 +70,18 @@ impl BallSink for Out {
                 }
             }
         }
+        if let Some(p) = &self.ros2 {
+            for r in rows.iter().filter(|r| r.camera == CameraId::Fused) {
+                if let Err(e) = p.publish(r) {
+                    if first.is_ok() {
+                        first = Err(IoError::Net {
+                            addr: "ROS 2 ball topics".to_string(),
+                            source: std::io::Error::other(e.to_string()),
+                        });
+                    }
+                }
+            }
+        }
         if let Some(s) = self.inner.as_mut() {
             let r = s.write_sigma(rows, sigma_mm);
             if first.is_ok() {
@@ -81,13 +97,16 @@ impl BallSink for Out {
 
 impl BallFusion {
     /// Subscribes to the ball rows of `cameras` (name, index) of `table`; fuses them with a
-    /// lag of `lag_frames`, into `sink` and, with `publish`, onto `.../fused/ball`.
+    /// lag of `lag_frames`, into `sink` and, with `publish`, onto `.../fused/ball`; with
+    /// `ros2`, the fused rows for ROS 2 too.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn start(
         session: &zenoh::Session,
         table: &str,
         cameras: Vec<(String, u32)>,
         lag_frames: u64,
         publish: Option<crate::net::WireFormat>,
+        ros2: Option<Ros2BallPublisher>,
         sink: Option<Box<dyn BallSink>>,
         log: Log,
     ) -> Result<BallFusion, ZenohError> {
@@ -105,6 +124,7 @@ impl BallFusion {
             lag_frames,
             Box::new(Out {
                 publisher,
+                ros2,
                 inner: sink,
             }),
         );
