@@ -42,18 +42,18 @@ pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 step "pytest python/tests (the rodtrack binary of target/release for the CSV comparisons)"
 RODTRACK_BIN="$target/release/rodtrack" python -m pytest -q -rs python/tests
 
-step "ROS 2 bags of track --mcap-ros2 (plain and lz4 chunks) read by rosbags, checked against the CSV"
+step "ROS 2 bags of track --mcap-ros2 (plain and lz4 chunks, rods and ball) read by rosbags, checked against the CSVs"
 bag="$target/ci-ros2-bag"
 rm -rf "$bag"
 cli="$target/release/rodtrack"
-"$cli" simulate --scenario exp3 --frames 40 --out "$bag/rec" >/dev/null
+"$cli" simulate --scenario ball --frames 40 --out "$bag/rec" >/dev/null
 "$cli" calibrate --inputs "$bag/rec/cam0.json" --inputs "$bag/rec/cam1.json" \
   --out "$bag/calib.toml" >/dev/null
 for c in none lz4; do
   "$cli" track --calib "$bag/calib.toml" --input "$bag/rec/cam0" --input "$bag/rec/cam1" \
-    --table t1 --out "$bag/rows-$c.csv" --mcap "$bag/joints-$c.mcap" --mcap-ros2 \
-    --mcap-compression "$c" >/dev/null
-  python .ci/ros2_bag.py "$bag/joints-$c.mcap" "$bag/rows-$c.csv"
+    --table t1 --out "$bag/rows-$c.csv" --ball-out "$bag/ball-$c.csv" --mcap "$bag/joints-$c.mcap" \
+    --mcap-ros2 --mcap-compression "$c" >/dev/null
+  python .ci/ros2_bag.py "$bag/joints-$c.mcap" "$bag/rows-$c.csv" "$bag/ball-$c.csv"
 done
 
 step "examples"

@@ -2,16 +2,22 @@
 //! time by their log times (the frames' capture timestamps), on the key expressions the
 //! camera nodes and the fusion node use: a camera's rows on `rodtrack/<table>/cam/<camera>/rows`
 //! (kind `rows`), the fused rows on `rodtrack/<table>/fused/rows` (kind `fused`), in the
-//! node's wire format. The keys are the recording's topics without their leading `/`. With
-//! [`ReplayOptions::ros2_domain`] the fused rows also go out for ROS 2 over rmw_zenoh, as the
-//! fusion node publishes them ([`crate::ros2`]).
+//! node's wire format. The keys are the recording's topics without their leading `/`. A
+//! recording's ball rows (`rodtrack.Ball`) go out as the nodes publish them: a camera's row of
+//! a frame on `rodtrack/<table>/cam/<camera>/ball`, and on `rodtrack/<table>/fused/ball` the
+//! frame's camera rows with the fused one. With [`ReplayOptions::ros2_domain`] the fused rows,
+//! and the fused ball, also go out for ROS 2 over rmw_zenoh, as the fusion node publishes them
+//! ([`crate::ros2`]).
 
 use crate::layout::{camera_bit, Kind};
 use crate::net::{NetworkOptions, RowPublisher};
-use crate::ros2::{Ros2Names, Ros2Node, Ros2Publisher};
+use crate::ros2::{Ros2BallPublisher, Ros2Names, Ros2Node, Ros2Publisher};
 use crate::ZenohError;
+use rodtrack_core::ball::BallRow;
 use rodtrack_core::{CameraId, Measurement};
-use rodtrack_io::mcap::{parse_rows_message, McapFile, ROWS_SCHEMA_NAME};
+use rodtrack_io::mcap::{
+    parse_ball_message, parse_rows_message, McapFile, BALL_SCHEMA_NAME, ROWS_SCHEMA_NAME,
+};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -46,6 +52,8 @@ pub struct ReplayReport {
     pub messages: u64,
     /// Rows in them.
     pub rows: u64,
+    /// Ball rows in them (a fused message's camera rows counted again).
+    pub ball_rows: u64,
     /// Messages of the recording's rows channels that could not be read (skipped).
     pub skipped: u64,
     /// From the first message to the last, wall time, s.
@@ -58,17 +66,32 @@ impl std::fmt::Display for ReplayReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "replayed {} messages ({} rows) in {:.3} s (recorded over {:.3} s), {} skipped",
-            self.messages, self.rows, self.duration_s, self.recorded_s, self.skipped
+            "replayed {} messages ({} rows, {} ball rows) in {:.3} s (recorded over {:.3} s), {} skipped",
+            self.messages, self.rows, self.ball_rows, self.duration_s, self.recorded_s, self.skipped
         )
     }
 }
 
-/// One rows message to publish.
+/// One message to publish.
 struct Planned {
     log_time_ns: u64,
     publisher: usize,
-    rows: Vec<Measurement>,
+    what: Payload,
+}
+
+enum Payload {
+    Rows(Vec<Measurement>),
+    /// Ball rows with their spreads (a fused message: the frame's camera rows, then the fused
+    /// one).
+    Ball(Vec<BallRow>, Vec<f64>),
+}
+
+/// A channel replayed: its key and what it carries.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Carries {
+    Rows(Kind),
+    /// Ball rows; `true` for the fused ones.
+    Ball(bool),
 }
 
 /// Publishes the rows of `file`; see the module documentation. Stops early when `stop` is
@@ -86,25 +109,24 @@ pub fn replay(
             options.speed
         )));
     }
-    // The rows channels: id -> (key, kind).
-    let mut channels: BTreeMap<u16, (String, Kind)> = BTreeMap::new();
+    // The rows and ball channels: id -> (key, what), and the ball's diameter.
+    let mut channels: BTreeMap<u16, (String, Carries)> = BTreeMap::new();
+    let mut ball_diameter_mm = None;
     for c in file.channels.values() {
-        let is_rows = file
-            .schemas
-            .get(&c.schema_id)
-            .is_some_and(|s| s.name == ROWS_SCHEMA_NAME);
-        if !is_rows {
-            continue;
-        }
         let key = c.topic.trim_start_matches('/').to_string();
-        let kind = if key.ends_with("/fused/rows") {
-            Kind::Fused
-        } else {
-            Kind::CameraRows
+        let carries = match file.schemas.get(&c.schema_id).map(|s| s.name.as_str()) {
+            Some(ROWS_SCHEMA_NAME) if key.ends_with("/fused/rows") => Carries::Rows(Kind::Fused),
+            Some(ROWS_SCHEMA_NAME) => Carries::Rows(Kind::CameraRows),
+            Some(BALL_SCHEMA_NAME) => {
+                let d = c.metadata.get("ball_diameter_mm");
+                ball_diameter_mm = ball_diameter_mm.or(d.and_then(|d| d.parse::<f64>().ok()));
+                Carries::Ball(key.ends_with("/fused/ball"))
+            }
+            _ => continue,
         };
-        channels.insert(c.id, (key, kind));
+        channels.insert(c.id, (key, carries));
     }
-    if channels.is_empty() {
+    if !channels.values().any(|c| matches!(c.1, Carries::Rows(_))) {
         return Err(ZenohError::Invalid(format!(
             "the recording has no {ROWS_SCHEMA_NAME} channel: nothing to replay"
         )));
@@ -113,21 +135,45 @@ pub fn replay(
     let index: BTreeMap<u16, usize> = channels.keys().enumerate().map(|(i, &c)| (c, i)).collect();
     let mut plan = Vec::new();
     let mut cameras = 0u64;
+    // The cameras' ball rows of the frame, for its fused message.
+    let mut frame_balls: (Vec<BallRow>, Vec<f64>) = Default::default();
     for m in &file.messages {
         let Some(&publisher) = index.get(&m.channel) else {
             continue;
         };
-        match parse_rows_message(&m.data) {
-            Ok(msg) => {
+        let parsed = match channels[&m.channel].1 {
+            Carries::Rows(_) => parse_rows_message(&m.data).map(|msg| {
                 for r in &msg.rows {
                     if let CameraId::Camera(k) = r.camera {
                         cameras |= camera_bit(k);
                     }
                 }
+                Payload::Rows(msg.rows)
+            }),
+            Carries::Ball(fused) => parse_ball_message(&m.data).map(|b| {
+                let (rows, sigma) = &mut frame_balls;
+                if rows.first().is_some_and(|r| r.frame != b.row.frame) {
+                    rows.clear();
+                    sigma.clear();
+                }
+                if fused {
+                    rows.push(b.row);
+                    sigma.push(b.sigma_mm);
+                    let (rows, sigma) = std::mem::take(&mut frame_balls);
+                    Payload::Ball(rows, sigma)
+                } else {
+                    rows.push(b.row);
+                    sigma.push(b.sigma_mm);
+                    Payload::Ball(vec![b.row], vec![b.sigma_mm])
+                }
+            }),
+        };
+        match parsed {
+            Ok(what) => {
                 plan.push(Planned {
                     log_time_ns: m.log_time_ns,
                     publisher,
-                    rows: msg.rows,
+                    what,
                 });
             }
             Err(e) => {
@@ -146,8 +192,8 @@ pub fn replay(
         .values()
         .map(|(key, _)| RowPublisher::declare(&session, key.clone(), net.format))
         .collect::<Result<Vec<_>, _>>()?;
-    let kinds: Vec<Kind> = channels.values().map(|(_, k)| *k).collect();
-    let ros2 = match options.ros2_domain {
+    let carries: Vec<Carries> = channels.values().map(|(_, c)| *c).collect();
+    let (ros2, ros2_ball) = match options.ros2_domain {
         Some(domain) => {
             let table = channels
                 .values()
@@ -161,9 +207,15 @@ pub fn replay(
                     )
                 })?;
             let node = Ros2Node::declare(&session, &Ros2Names::fused(domain, table)?)?;
-            Some(Ros2Publisher::declare(&session, &node)?)
+            let joints = Ros2Publisher::declare(&session, &node)?;
+            let fused_ball = carries.contains(&Carries::Ball(true));
+            let ball = match ball_diameter_mm {
+                Some(d) if fused_ball => Some(Ros2BallPublisher::declare(&session, &node, d)?),
+                _ => None,
+            };
+            (Some(joints), ball)
         }
-        None => None,
+        None => (None, None),
     };
     if !sleep_until(Instant::now() + options.start_delay, stop) {
         return Ok(report);
@@ -177,23 +229,40 @@ pub fn replay(
         if !sleep_until(start + Duration::from_secs_f64(offset), stop) {
             break;
         }
-        let kind = kinds[p.publisher];
-        let mask = match (kind, p.rows.first().map(|r| r.camera)) {
-            (Kind::Fused, _) => cameras,
-            (_, Some(CameraId::Camera(k))) => camera_bit(k),
-            _ => 0,
-        };
-        publishers[p.publisher].publish_runs(kind, true, mask, &p.rows)?;
-        if let (Kind::Fused, Some(r)) = (kind, &ros2) {
-            r.publish_frames(&p.rows)?;
+        let publisher = &publishers[p.publisher];
+        match &p.what {
+            Payload::Rows(rows) => {
+                // A rows payload comes from a rows channel.
+                let Carries::Rows(kind) = carries[p.publisher] else {
+                    continue;
+                };
+                let mask = match (kind, rows.first().map(|r| r.camera)) {
+                    (Kind::Fused, _) => cameras,
+                    (_, Some(CameraId::Camera(k))) => camera_bit(k),
+                    _ => 0,
+                };
+                publisher.publish_runs(kind, true, mask, rows)?;
+                if let (Kind::Fused, Some(r)) = (kind, &ros2) {
+                    r.publish_frames(rows)?;
+                }
+                report.rows += rows.len() as u64;
+            }
+            Payload::Ball(rows, sigma) => {
+                publisher.publish_ball(rows, sigma)?;
+                if let Some(r) = &ros2_ball {
+                    for row in rows.iter().filter(|r| r.camera == CameraId::Fused) {
+                        r.publish(row)?;
+                    }
+                }
+                report.ball_rows += rows.len() as u64;
+            }
         }
         report.messages += 1;
-        report.rows += p.rows.len() as u64;
     }
     report.duration_s = start.elapsed().as_secs_f64();
     // Undeclared before the session closes.
     drop(publishers);
-    drop(ros2);
+    drop((ros2, ros2_ball));
     Ok(report)
 }
 

@@ -35,9 +35,9 @@
 //! samples was not run here (docs/network.md).
 
 use crate::ZenohError;
-use rodtrack_core::ball::{BallRow, BallStatus};
+use rodtrack_core::ball::BallRow;
 use rodtrack_core::Measurement;
-use rodtrack_io::mcap::{JointState, StampedXyz};
+use rodtrack_io::mcap::{ball_place_and_velocity, JointState, StampedXyz};
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use zenoh::liveliness::LivelinessToken;
@@ -479,17 +479,6 @@ impl Ros2BallPublisher {
     }
 }
 
-/// A ball row's place and velocity in m and m/s (the centre at `centre_z_m`), when it has a
-/// place (`ok`, `predicted`) and they are finite.
-fn ball_place_and_velocity(row: &BallRow, centre_z_m: f64) -> Option<([f64; 3], [f64; 3])> {
-    let (p, v) = (
-        [row.x_mm * 1e-3, row.y_mm * 1e-3, centre_z_m],
-        [row.vx_mm_s * 1e-3, row.vy_mm_s * 1e-3, 0.0],
-    );
-    let placed = matches!(row.status, BallStatus::Ok | BallStatus::Predicted);
-    (placed && p.iter().chain(&v).all(|x| x.is_finite())).then_some((p, v))
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -556,35 +545,6 @@ mod tests {
             Ros2Names::fused(0, "lab").unwrap().ball_topic(),
             "/rodtrack/lab/ball"
         );
-    }
-
-    #[test]
-    fn only_a_ball_with_a_finite_place_goes_out() {
-        use rodtrack_core::{CameraId, Timestamp};
-        let row = |status, x_mm: f64| BallRow {
-            x_mm,
-            y_mm: -250.0,
-            vx_mm_s: 1500.0,
-            vy_mm_s: -20.0,
-            quality: 1.0,
-            status,
-            ..BallRow::lost(3, Timestamp(15_000_000), CameraId::Fused)
-        };
-        let (p, v) = ball_place_and_velocity(&row(BallStatus::Ok, 120.0), 0.0175).unwrap();
-        assert_eq!(p, [0.12, -0.25, 0.0175]);
-        assert_eq!(v, [1.5, -0.02, 0.0]);
-        assert!(ball_place_and_velocity(&row(BallStatus::Predicted, 120.0), 0.0175).is_some());
-        for (status, x) in [
-            (BallStatus::Lost, 0.0),
-            (BallStatus::Conflict, 120.0),
-            (BallStatus::Ok, f64::NAN),
-            (BallStatus::Predicted, f64::INFINITY),
-        ] {
-            assert!(
-                ball_place_and_velocity(&row(status, x), 0.0175).is_none(),
-                "{status:?} {x}"
-            );
-        }
     }
 
     #[test]

@@ -51,12 +51,14 @@ pub struct Args {
     /// sets go on without it, marked incomplete.
     #[arg(long, default_value_t = 3.0)]
     pub loss_frames: f64,
-    /// Also record every camera's rows, the fused rows and the rods as joints to this MCAP
-    /// file, for Foxglove or Rerun (docs/network.md).
+    /// Also record every camera's rows, the fused rows, the rods as joints and, when the
+    /// calibration has a ball, the ball's rows to this MCAP file, for Foxglove or Rerun
+    /// (docs/network.md).
     #[arg(long)]
     pub mcap: Option<PathBuf>,
     /// With --mcap: write a ROS 2 bag instead (MCAP profile ros2): the rods as
-    /// sensor_msgs/msg/JointState in CDR, per camera and fused.
+    /// sensor_msgs/msg/JointState in CDR, per camera and fused, and the ball as
+    /// geometry_msgs/msg/PointStamped and Vector3Stamped.
     #[arg(long, requires = "mcap")]
     pub mcap_ros2: bool,
     /// With --mcap: how the file's chunks are compressed.
@@ -192,6 +194,21 @@ fn run_node(args: Args) -> Result<()> {
             Some(created.with_context(|| format!("creating the ball output {}", path.display()))?)
         }
         None => None,
+    };
+    // A recording holds the ball's rows when the calibration has a ball (the node fuses them).
+    let recorded = recording
+        .as_ref()
+        .and_then(|r| crate::recording::ball_sink(r, &cal));
+    let ball = match (recorded, ball) {
+        (Some(recorded), ball) => {
+            let mut sink = rodtrack_io::BallMultiSink::new();
+            sink.push(recorded);
+            if let Some(b) = ball {
+                sink.push(b);
+            }
+            Some(Box::new(sink) as Box<dyn rodtrack_io::BallSink>)
+        }
+        (None, ball) => ball,
     };
     let (report, sink) = run_fusion(
         &cal,

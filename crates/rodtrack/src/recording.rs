@@ -37,8 +37,9 @@ impl From<CompressionArg> for Compression {
 /// The recording's options.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct McapArgs {
-    /// Also record the rows (each camera's and the fused ones) and the rods as joints to this
-    /// MCAP file, for Foxglove or Rerun (docs/network.md).
+    /// Also record the rows (each camera's and the fused ones), the rods as joints and the
+    /// ball's rows when the ball is tracked to this MCAP file, for Foxglove or Rerun
+    /// (docs/network.md).
     #[arg(long)]
     pub mcap: Option<PathBuf>,
     /// With --mcap: also record this many downscaled grey frames per second per camera
@@ -46,7 +47,8 @@ pub struct McapArgs {
     #[arg(long, default_value_t = 0.0, requires = "mcap")]
     pub mcap_frames: f64,
     /// With --mcap: write a ROS 2 bag instead (MCAP profile ros2, for rosbag2 and rosbags):
-    /// the rods as sensor_msgs/msg/JointState in CDR, per camera and fused; no rows, no frames.
+    /// the rods as sensor_msgs/msg/JointState in CDR, per camera and fused, and the ball as
+    /// geometry_msgs/msg/PointStamped and Vector3Stamped; no rows, no frames.
     #[arg(long, requires = "mcap")]
     pub mcap_ros2: bool,
     /// With --mcap: how the file's chunks are compressed.
@@ -90,6 +92,16 @@ pub fn open(
     let rec = McapRecorder::create(path, options)
         .with_context(|| format!("creating the recording {}", path.display()))?;
     Ok(Some(rec))
+}
+
+/// The recording's sink of ball rows, for the ball of the calibration's first camera with a
+/// ball; `None` when no camera has one.
+pub fn ball_sink(
+    rec: &McapRecorder,
+    cal: &rodtrack_core::calib::CalibrationFile,
+) -> Option<Box<dyn rodtrack_io::BallSink>> {
+    let ball = cal.cameras.iter().find_map(|c| c.ball.as_ref())?;
+    Some(Box::new(rec.ball_sink(ball.diameter_mm)))
 }
 
 /// Ends the recording (its summary and footer) and says what it holds.

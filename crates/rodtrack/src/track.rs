@@ -277,9 +277,18 @@ pub fn run(args: Args) -> Result<()> {
     let mut session = Session::open(&cal, &args.inputs, options)?;
     // The ball is tracked for --ball-out or --events-out; its rows go to the file, and with
     // --udp to the stream too, as datagrams of their own (`RTBL`).
+    let cameras = cal.cameras.iter().map(|c| (c.index, c.name.clone()));
+    let recording = crate::recording::open(&args.mcap, &args.net.table, cameras.collect())?;
     let ball_on_network = args.zenoh_ball && node.is_some();
     if args.ball_out.is_some() || args.events_out.is_some() || ball_on_network {
         let mut sink = rodtrack_io::BallMultiSink::new();
+        // A recording holds the ball's rows when the ball is tracked.
+        if let Some(s) = recording
+            .as_ref()
+            .and_then(|r| crate::recording::ball_sink(r, &cal))
+        {
+            sink.push(s);
+        }
         if let (Some(n), true) = (&node, ball_on_network) {
             sink.push(crate::network::node_ball_sink(n));
         }
@@ -348,8 +357,6 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(n) = &node {
         sink.push(crate::network::node_sink(n));
     }
-    let cameras = cal.cameras.iter().map(|c| (c.index, c.name.clone()));
-    let recording = crate::recording::open(&args.mcap, &args.net.table, cameras.collect())?;
     if let Some(r) = &recording {
         sink.push(Box::new(r.sink()));
     }

@@ -246,3 +246,109 @@ fn a_replay_publishes_the_fused_rods_for_ros2_as_rmw_zenoh_does() {
         }
     }
 }
+
+#[test]
+fn a_recordings_ball_is_replayed_as_the_nodes_publish_it() {
+    use rodtrack_io::mcap::StampedXyz;
+    use rodtrack_zenoh::ball_layout::decode_ball;
+    use rodtrack_zenoh::ros2::POINT_STAMPED;
+    let (dir, calib) = common::two_cameras_of("zenoh_replay_ball", "ball", 40);
+    let (mcap, ball_csv, rec) = (dir.join("run.mcap"), dir.join("b.csv"), dir.join("rec"));
+    let o = rodtrack(&[
+        "track",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--input",
+        rec.join("cam0").to_str().unwrap(),
+        "--input",
+        rec.join("cam1").to_str().unwrap(),
+        "--ball-out",
+        ball_csv.to_str().unwrap(),
+        "--mcap",
+        mcap.to_str().unwrap(),
+        "--table",
+        "bench",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The CSV's lines per camera (`0`, `1`, `fused`), in frame order.
+    let mut want: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for l in std::fs::read_to_string(&ball_csv).unwrap().lines().skip(1) {
+        let camera = l.split(',').nth(2).unwrap().to_string();
+        want.entry(camera).or_default().push(l.to_string());
+    }
+
+    let (session, port) = listening();
+    type Got = Arc<Mutex<Vec<(String, Vec<String>)>>>;
+    let got: Got = Arc::default();
+    let sink = got.clone();
+    let _sub = session
+        .declare_subscriber("rodtrack/bench/**/ball")
+        .callback(move |s| {
+            let m = decode_ball(&s.payload().to_bytes()).unwrap();
+            let lines = m.rows.iter().map(|r| r.0.csv_line()).collect();
+            sink.lock()
+                .unwrap()
+                .push((s.key_expr().as_str().to_string(), lines));
+        })
+        .wait()
+        .unwrap();
+    let names = Ros2Names::fused(6, "bench").unwrap();
+    let ros: Arc<Mutex<Vec<StampedXyz>>> = Arc::default();
+    let ros_sink = ros.clone();
+    let _ros_sub = session
+        .declare_subscriber(names.keyexpr_of(&names.ball_topic(), POINT_STAMPED))
+        .callback(move |s| {
+            let m = StampedXyz::from_cdr(&s.payload().to_bytes()).unwrap();
+            ros_sink.lock().unwrap().push(m);
+        })
+        .wait()
+        .unwrap();
+    let out = replay_to(&mcap, port, &["--ros2-domain", "6"]);
+    // 40 rows of each camera, and 40 fused messages of 3 rows.
+    assert!(out.contains("200 ball rows"), "{out}");
+    std::thread::sleep(Duration::from_millis(300));
+
+    let got = got.lock().unwrap();
+    for k in ["0", "1"] {
+        // A camera node's messages: its row of each frame.
+        let key = format!("rodtrack/bench/cam/cam{k}/ball");
+        let msgs: Vec<&Vec<String>> = got.iter().filter(|g| g.0 == key).map(|g| &g.1).collect();
+        assert!(msgs.iter().all(|m| m.len() == 1), "{key}");
+        let lines: Vec<String> = msgs.iter().map(|m| m[0].clone()).collect();
+        assert_eq!(lines, want[k], "{key}");
+    }
+    // The fusion node's: each frame's camera rows, then the fused one.
+    let fused: Vec<&Vec<String>> = got
+        .iter()
+        .filter(|g| g.0 == "rodtrack/bench/fused/ball")
+        .map(|g| &g.1)
+        .collect();
+    assert_eq!(fused.len(), 40);
+    for (i, m) in fused.iter().enumerate() {
+        assert_eq!(
+            **m,
+            vec![
+                want["0"][i].clone(),
+                want["1"][i].clone(),
+                want["fused"][i].clone()
+            ],
+            "frame {i}"
+        );
+    }
+    // For ROS 2: the fused rows with a place.
+    let placed: Vec<&String> = want["fused"]
+        .iter()
+        .filter(|l| l.ends_with(",ok") || l.ends_with(",predicted"))
+        .collect();
+    let ros = ros.lock().unwrap();
+    assert_eq!(ros.len(), placed.len());
+    for (m, l) in ros.iter().zip(placed) {
+        let x_mm: f64 = l.split(',').nth(3).unwrap().parse().unwrap();
+        assert!(
+            (m.xyz[0] * 1e3 - x_mm).abs() <= 0.0005 + 1e-9,
+            "{l}: {:?}",
+            m.xyz
+        );
+        assert_eq!(m.frame_id, "rodtrack/bench");
+    }
+}

@@ -55,6 +55,18 @@ impl BallStatus {
             BallStatus::Conflict => "conflict",
         }
     }
+
+    /// The status of a name in files ([`BallStatus::name`]).
+    pub fn from_name(s: &str) -> Option<BallStatus> {
+        [
+            BallStatus::Ok,
+            BallStatus::Predicted,
+            BallStatus::Lost,
+            BallStatus::Conflict,
+        ]
+        .into_iter()
+        .find(|b| b.name() == s)
+    }
 }
 
 impl std::fmt::Display for BallStatus {

@@ -14,6 +14,7 @@
 //!   from chunks (uncompressed or LZ4) or outside chunks; a file cut short (a crash) gives the
 //!   complete chunks before the cut.
 //! - [`record`]: [`McapRecorder`], the channels and schemas of rodtrack's recordings.
+//! - [`mod@ball`]: the ball's rows in recordings ([`McapRecorder::ball_sink`]).
 //! - [`ros2`]: [`JointState`] in CDR, its `ros2msg` schema and QoS metadata.
 //!
 //! What a crash leaves: every chunk closed before it (a chunk is closed after at most
@@ -21,11 +22,13 @@
 //! summary: readers that stream the file (this module's, the `mcap` tools' `recover`) read
 //! those chunks; the open chunk's messages are lost.
 
+pub mod ball;
 pub mod read;
 pub mod record;
 pub mod ros2;
 pub mod write;
 
+pub use ball::{parse_ball_message, BallMessage, McapBallSink, BALL_SCHEMA, BALL_SCHEMA_NAME};
 pub use read::{
     parse_mcap, read_mcap, McapChannel, McapFile, McapMessage, McapSchema, MAX_CHUNK_BYTES,
 };
@@ -33,7 +36,11 @@ pub use record::{
     parse_rows_message, McapRecorder, McapSink, Profile, RecordOptions, RowsMessage, IMAGE_SCHEMA,
     IMAGE_SCHEMA_NAME, JOINTS_SCHEMA, JOINTS_SCHEMA_NAME, ROWS_SCHEMA, ROWS_SCHEMA_NAME,
 };
-pub use ros2::{JointState, StampedXyz, JOINT_STATE_MSGDEF, JOINT_STATE_SCHEMA_NAME};
+pub use ros2::{
+    ball_place_and_velocity, JointState, StampedXyz, JOINT_STATE_MSGDEF, JOINT_STATE_SCHEMA_NAME,
+    POINT_STAMPED_MSGDEF, POINT_STAMPED_SCHEMA_NAME, VECTOR3_STAMPED_MSGDEF,
+    VECTOR3_STAMPED_SCHEMA_NAME,
+};
 pub use write::{ChunkLimits, Compression, McapWriter, WriteSummary};
 
 /// The 8 bytes at the start and the end of an MCAP file.

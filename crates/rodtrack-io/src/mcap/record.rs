@@ -9,6 +9,7 @@
 //! | `/rodtrack/<table>/fused/rows` | `rodtrack.Rows` | the fused rows of one frame set |
 //! | `/rodtrack/<table>/cam/<camera>/joints`, `/rodtrack/<table>/fused/joints` | `rodtrack.JointState` | the same rows as joints: `rod<k>_slide` (m, m/s) and `rod<k>_turn` (rad, rad/s) |
 //! | `/rodtrack/<table>/cam/<camera>/image` | `foxglove.RawImage` | downscaled grey frames, when asked for |
+//! | `/rodtrack/<table>/cam/<camera>/ball`, `/rodtrack/<table>/fused/ball` | `rodtrack.Ball` | the ball's rows, one per frame ([`super::ball`], through [`McapRecorder::ball_sink`]) |
 //!
 //! Every message's log time and publish time are the frame's capture timestamp, ns. Each
 //! channel's metadata names its `table` and `camera`.
@@ -17,11 +18,16 @@
 //! and rosbags read): only `sensor_msgs/msg/JointState` messages in CDR (schema encoding
 //! `ros2msg`), on `/rodtrack/<table>/cam/<camera>/joint_states` and
 //! `/rodtrack/<table>/fused/joint_states` (names made ROS names by
-//! [`super::ros2::ros_name_token`]), each channel with its `offered_qos_profiles`. The
-//! profile admits no other encoding, so the rows and frames are not in that file.
+//! [`super::ros2::ros_name_token`]), and the ball as `geometry_msgs/msg/PointStamped` and
+//! `Vector3Stamped` on `.../ball` and `.../ball/velocity`, each channel with its
+//! `offered_qos_profiles`. The profile admits no other encoding, so the rows and frames are
+//! not in that file.
 
+use super::ball::{BALL_SCHEMA, BALL_SCHEMA_NAME};
 use super::ros2::{
     ros_name_token, JointState, JOINT_STATE_MSGDEF, JOINT_STATE_QOS, JOINT_STATE_SCHEMA_NAME,
+    POINT_STAMPED_MSGDEF, POINT_STAMPED_SCHEMA_NAME, VECTOR3_STAMPED_MSGDEF,
+    VECTOR3_STAMPED_SCHEMA_NAME,
 };
 use super::write::{ChunkLimits, Compression, McapWriter, WriteSummary};
 use crate::IoError;
@@ -147,11 +153,17 @@ pub struct McapRecorder {
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Topic {
+pub(super) enum Topic {
     Rows(CameraId),
     Joints(CameraId),
     JointStates(CameraId),
     Image(u32),
+    /// The ball's rows ([`super::ball`]).
+    Ball(CameraId),
+    /// The ball's place in a ROS 2 bag.
+    BallPoint(CameraId),
+    /// The ball's velocity in a ROS 2 bag.
+    BallVelocity(CameraId),
 }
 
 struct Channel {
@@ -159,17 +171,19 @@ struct Channel {
     sequence: u32,
 }
 
-struct Inner {
+pub(super) struct Inner {
     writer: McapWriter<File>,
     path: PathBuf,
-    options: RecordOptions,
+    pub(super) options: RecordOptions,
     schemas: BTreeMap<&'static str, u16>,
     /// The channels added, few: searched in order.
     channels: Vec<(Topic, Channel)>,
     /// The last frame recorded per camera, ns.
     last_frame_ns: BTreeMap<u32, u64>,
-    json: Vec<u8>,
-    cdr: Vec<u8>,
+    pub(super) json: Vec<u8>,
+    pub(super) cdr: Vec<u8>,
+    /// The ball's diameter, mm, in its channels' metadata (`ball_diameter_mm`).
+    pub(super) ball_diameter_mm: Option<f64>,
     groups: Vec<(CameraId, u64, u64)>,
 }
 
@@ -200,12 +214,13 @@ impl McapRecorder {
                 last_frame_ns: BTreeMap::new(),
                 json: Vec::with_capacity(4096),
                 cdr: Vec::with_capacity(1024),
+                ball_diameter_mm: None,
                 groups: Vec::new(),
             })),
         })
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+    pub(super) fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
@@ -311,7 +326,7 @@ impl McapRecorder {
 }
 
 /// Escapes a string for JSON.
-fn json_string(s: &str) -> String {
+pub(super) fn json_string(s: &str) -> String {
     serde_json::Value::from(s).to_string()
 }
 
@@ -341,7 +356,7 @@ impl Inner {
         }
     }
 
-    fn camera_name(&self, camera: CameraId) -> String {
+    pub(super) fn camera_name(&self, camera: CameraId) -> String {
         match camera {
             CameraId::Fused => "fused".into(),
             CameraId::Camera(k) => self
@@ -353,7 +368,7 @@ impl Inner {
         }
     }
 
-    fn topic_name(&self, topic: Topic) -> String {
+    pub(super) fn topic_name(&self, topic: Topic) -> String {
         let t = if self.options.table.is_empty() {
             "default"
         } else {
@@ -376,6 +391,9 @@ impl Inner {
             Topic::Joints(c) => format!("{}/joints", prefix(c)),
             Topic::JointStates(c) => format!("{}/joint_states", ros_prefix(c)),
             Topic::Image(c) => format!("{}/image", prefix(CameraId::Camera(c))),
+            Topic::Ball(c) => format!("{}/ball", prefix(c)),
+            Topic::BallPoint(c) => format!("{}/ball", ros_prefix(c)),
+            Topic::BallVelocity(c) => format!("{}/ball/velocity", ros_prefix(c)),
         }
     }
 
@@ -387,6 +405,13 @@ impl Inner {
                 Topic::Joints(_) => (JOINTS_SCHEMA_NAME, JOINTS_SCHEMA, "jsonschema"),
                 Topic::JointStates(_) => (JOINT_STATE_SCHEMA_NAME, JOINT_STATE_MSGDEF, "ros2msg"),
                 Topic::Image(_) => (IMAGE_SCHEMA_NAME, IMAGE_SCHEMA, "jsonschema"),
+                Topic::Ball(_) => (BALL_SCHEMA_NAME, BALL_SCHEMA, "jsonschema"),
+                Topic::BallPoint(_) => (POINT_STAMPED_SCHEMA_NAME, POINT_STAMPED_MSGDEF, "ros2msg"),
+                Topic::BallVelocity(_) => (
+                    VECTOR3_STAMPED_SCHEMA_NAME,
+                    VECTOR3_STAMPED_MSGDEF,
+                    "ros2msg",
+                ),
             };
             let schema_id = match self.schemas.get(schema_name) {
                 Some(&id) => id,
@@ -405,12 +430,23 @@ impl Inner {
                 self.options.table.clone()
             };
             let camera = match topic {
-                Topic::Rows(c) | Topic::Joints(c) | Topic::JointStates(c) => self.camera_name(c),
+                Topic::Rows(c)
+                | Topic::Joints(c)
+                | Topic::JointStates(c)
+                | Topic::Ball(c)
+                | Topic::BallPoint(c)
+                | Topic::BallVelocity(c) => self.camera_name(c),
                 Topic::Image(c) => self.camera_name(CameraId::Camera(c)),
             };
             let mut metadata = vec![("table", table.as_str()), ("camera", camera.as_str())];
+            let diameter = self.ball_diameter_mm.map(|d| d.to_string());
+            if let (Topic::Ball(_) | Topic::BallPoint(_) | Topic::BallVelocity(_), Some(d)) =
+                (topic, &diameter)
+            {
+                metadata.push(("ball_diameter_mm", d.as_str()));
+            }
             let message_encoding = match topic {
-                Topic::JointStates(_) => {
+                Topic::JointStates(_) | Topic::BallPoint(_) | Topic::BallVelocity(_) => {
                     metadata.insert(0, ("offered_qos_profiles", JOINT_STATE_QOS));
                     "cdr"
                 }
@@ -428,7 +464,12 @@ impl Inner {
             .ok_or_else(|| IoError::Config("a channel just added is missing".into()))
     }
 
-    fn message(&mut self, topic: Topic, time_ns: u64, data: &[u8]) -> Result<(), IoError> {
+    pub(super) fn message(
+        &mut self,
+        topic: Topic,
+        time_ns: u64,
+        data: &[u8],
+    ) -> Result<(), IoError> {
         let ch = self.channel(topic)?;
         let (id, seq) = (ch.id, ch.sequence);
         ch.sequence = ch.sequence.wrapping_add(1);
@@ -673,7 +714,7 @@ mod tests {
 
     #[test]
     fn schemas_are_json() {
-        for s in [ROWS_SCHEMA, JOINTS_SCHEMA, IMAGE_SCHEMA] {
+        for s in [ROWS_SCHEMA, JOINTS_SCHEMA, IMAGE_SCHEMA, BALL_SCHEMA] {
             let v: serde_json::Value = serde_json::from_str(s).unwrap();
             assert_eq!(v["type"], "object");
         }

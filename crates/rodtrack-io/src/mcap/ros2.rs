@@ -8,6 +8,7 @@
 //! (`float64` elements 8-byte aligned, no padding when the sequence is empty). Nothing is
 //! padded after the last field.
 
+use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::{Measurement, Status};
 
 /// The joint states' schema name (ROS 2's `sensor_msgs/msg/JointState`).
@@ -33,6 +34,64 @@ string frame_id\n\
 MSG: builtin_interfaces/Time\n\
 int32 sec\n\
 uint32 nanosec\n";
+
+/// `geometry_msgs/msg/PointStamped`'s schema name.
+pub const POINT_STAMPED_SCHEMA_NAME: &str = "geometry_msgs/msg/PointStamped";
+
+/// `geometry_msgs/msg/PointStamped`'s definition, with the types it uses appended.
+pub const POINT_STAMPED_MSGDEF: &str = "std_msgs/Header header\n\
+geometry_msgs/Point point\n\
+\n\
+================================================================================\n\
+MSG: std_msgs/Header\n\
+builtin_interfaces/Time stamp\n\
+string frame_id\n\
+\n\
+================================================================================\n\
+MSG: builtin_interfaces/Time\n\
+int32 sec\n\
+uint32 nanosec\n\
+\n\
+================================================================================\n\
+MSG: geometry_msgs/Point\n\
+float64 x\n\
+float64 y\n\
+float64 z\n";
+
+/// `geometry_msgs/msg/Vector3Stamped`'s schema name.
+pub const VECTOR3_STAMPED_SCHEMA_NAME: &str = "geometry_msgs/msg/Vector3Stamped";
+
+/// `geometry_msgs/msg/Vector3Stamped`'s definition, with the types it uses appended.
+pub const VECTOR3_STAMPED_MSGDEF: &str = "std_msgs/Header header\n\
+geometry_msgs/Vector3 vector\n\
+\n\
+================================================================================\n\
+MSG: std_msgs/Header\n\
+builtin_interfaces/Time stamp\n\
+string frame_id\n\
+\n\
+================================================================================\n\
+MSG: builtin_interfaces/Time\n\
+int32 sec\n\
+uint32 nanosec\n\
+\n\
+================================================================================\n\
+MSG: geometry_msgs/Vector3\n\
+float64 x\n\
+float64 y\n\
+float64 z\n";
+
+/// A ball row as ROS 2 messages: its centre (m, the table frame, `z` = `centre_z_m`: the
+/// ball's radius above the field) and its velocity (m/s, `z` 0), when it has a place
+/// (`ok`, `predicted`) and both are finite. A `lost` or `conflict` row has none.
+pub fn ball_place_and_velocity(row: &BallRow, centre_z_m: f64) -> Option<([f64; 3], [f64; 3])> {
+    let (p, v) = (
+        [row.x_mm * 1e-3, row.y_mm * 1e-3, centre_z_m],
+        [row.vx_mm_s * 1e-3, row.vy_mm_s * 1e-3, 0.0],
+    );
+    let placed = matches!(row.status, BallStatus::Ok | BallStatus::Predicted);
+    (placed && p.iter().chain(&v).all(|x| x.is_finite())).then_some((p, v))
+}
 
 /// The `offered_qos_profiles` of the joint state channels (required by the MCAP `ros2`
 /// profile): one publisher, reliable, volatile, keep last 10, with rmw's default deadline,
@@ -452,6 +511,35 @@ mod tests {
             let at = b.as_ptr();
             JointState::rows_to_cdr(rows.iter(), 3_000_000_123, "rodtrack/t", &mut b);
             assert_eq!((at, &a), (b.as_ptr(), &b));
+        }
+    }
+
+    #[test]
+    fn only_a_ball_with_a_finite_place_goes_out() {
+        use rodtrack_core::{CameraId, Timestamp};
+        let row = |status, x_mm: f64| BallRow {
+            x_mm,
+            y_mm: -250.0,
+            vx_mm_s: 1500.0,
+            vy_mm_s: -20.0,
+            quality: 1.0,
+            status,
+            ..BallRow::lost(3, Timestamp(15_000_000), CameraId::Fused)
+        };
+        let (p, v) = ball_place_and_velocity(&row(BallStatus::Ok, 120.0), 0.0175).unwrap();
+        assert_eq!(p, [0.12, -0.25, 0.0175]);
+        assert_eq!(v, [1.5, -0.02, 0.0]);
+        assert!(ball_place_and_velocity(&row(BallStatus::Predicted, 120.0), 0.0175).is_some());
+        for (status, x) in [
+            (BallStatus::Lost, 0.0),
+            (BallStatus::Conflict, 120.0),
+            (BallStatus::Ok, f64::NAN),
+            (BallStatus::Predicted, f64::INFINITY),
+        ] {
+            assert!(
+                ball_place_and_velocity(&row(status, x), 0.0175).is_none(),
+                "{status:?} {x}"
+            );
         }
     }
 

@@ -55,9 +55,14 @@ pub fn recording(name: &str, sub: &str, scenario: &str, frames: u64) -> Fixture 
     Fixture { rec, dir, calib }
 }
 
-/// A simulated recording of two cameras (`<tmp>/<name>/rec`) and their calibration
-/// (`<tmp>/<name>/c.toml`); returns the folder and the calibration.
+/// A simulated recording of two cameras (`<tmp>/<name>/rec`, scenario `exp3`) and their
+/// calibration (`<tmp>/<name>/c.toml`); returns the folder and the calibration.
 pub fn two_cameras(name: &str, frames: u64) -> (PathBuf, PathBuf) {
+    two_cameras_of(name, "exp3", frames)
+}
+
+/// [`two_cameras`] of the simulator's `scenario`.
+pub fn two_cameras_of(name: &str, scenario: &str, frames: u64) -> (PathBuf, PathBuf) {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     let rec = dir.join("rec");
@@ -74,7 +79,7 @@ pub fn two_cameras(name: &str, frames: u64) -> (PathBuf, PathBuf) {
     ok(&[
         "simulate",
         "--scenario",
-        "exp3",
+        scenario,
         "--frames",
         &frames.to_string(),
         "--out",
