@@ -4,32 +4,28 @@
 
 mod common;
 
-use common::{rodtrack, two_cameras_of};
+use common::{track_two_cameras, two_cameras_of};
 use rodtrack_io::mcap::{parse_ball_message, BALL_SCHEMA_NAME};
 use std::collections::BTreeMap;
 
 #[test]
 fn a_recording_holds_every_ball_row_of_the_csv() {
     let (dir, calib) = two_cameras_of("mcap_ball", "ball", 40);
-    let rec = dir.join("rec");
     let (csv, ball, mcap) = (dir.join("r.csv"), dir.join("b.csv"), dir.join("r.mcap"));
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--out",
-        csv.to_str().unwrap(),
-        "--ball-out",
-        ball.to_str().unwrap(),
-        "--mcap",
-        mcap.to_str().unwrap(),
-        "--table",
-        "t1",
-    ]);
+    let o = track_two_cameras(
+        &dir,
+        &calib,
+        &[
+            "--out",
+            csv.to_str().unwrap(),
+            "--ball-out",
+            ball.to_str().unwrap(),
+            "--mcap",
+            mcap.to_str().unwrap(),
+            "--table",
+            "t1",
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     // The CSV's rows by (camera, frame): the line as written.

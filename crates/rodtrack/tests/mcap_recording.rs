@@ -25,16 +25,7 @@ fn track_with_mcap(
     mcap: &Path,
     extra: &[&str],
 ) -> std::process::Output {
-    let rec = dir.join("rec");
-    let (cam0, cam1) = (rec.join("cam0"), rec.join("cam1"));
     let mut args = vec![
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        cam0.to_str().unwrap(),
-        "--input",
-        cam1.to_str().unwrap(),
         "--out",
         csv.to_str().unwrap(),
         "--mcap",
@@ -43,7 +34,7 @@ fn track_with_mcap(
         "t1",
     ];
     args.extend_from_slice(extra);
-    rodtrack(&args)
+    common::track_two_cameras(dir, calib, &args)
 }
 
 /// `v` with `d` decimals as the files write it (no minus sign on a zero).

@@ -8,7 +8,6 @@
 
 mod common;
 
-use common::rodtrack;
 use rodtrack_core::Status;
 use rodtrack_core::{CameraId, Measurement};
 use rodtrack_io::mcap::{parse_rows_message, read_mcap, JointState};
@@ -34,20 +33,11 @@ fn free_port() -> u16 {
 fn record(name: &str) -> (std::path::PathBuf, BTreeMap<String, Vec<Measurement>>, f64) {
     let (dir, calib) = common::two_cameras(name, 60);
     let mcap = dir.join("run.mcap");
-    let rec = dir.join("rec");
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--mcap",
-        mcap.to_str().unwrap(),
-        "--table",
-        "bench",
-    ]);
+    let o = common::track_two_cameras(
+        &dir,
+        &calib,
+        &["--mcap", mcap.to_str().unwrap(), "--table", "bench"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let file = read_mcap(&mcap).unwrap();
     let mut recorded: BTreeMap<String, Vec<Measurement>> = BTreeMap::new();
@@ -253,22 +243,19 @@ fn a_recordings_ball_is_replayed_as_the_nodes_publish_it() {
     use rodtrack_zenoh::ball_layout::decode_ball;
     use rodtrack_zenoh::ros2::POINT_STAMPED;
     let (dir, calib) = common::two_cameras_of("zenoh_replay_ball", "ball", 40);
-    let (mcap, ball_csv, rec) = (dir.join("run.mcap"), dir.join("b.csv"), dir.join("rec"));
-    let o = rodtrack(&[
-        "track",
-        "--calib",
-        calib.to_str().unwrap(),
-        "--input",
-        rec.join("cam0").to_str().unwrap(),
-        "--input",
-        rec.join("cam1").to_str().unwrap(),
-        "--ball-out",
-        ball_csv.to_str().unwrap(),
-        "--mcap",
-        mcap.to_str().unwrap(),
-        "--table",
-        "bench",
-    ]);
+    let (mcap, ball_csv) = (dir.join("run.mcap"), dir.join("b.csv"));
+    let o = common::track_two_cameras(
+        &dir,
+        &calib,
+        &[
+            "--ball-out",
+            ball_csv.to_str().unwrap(),
+            "--mcap",
+            mcap.to_str().unwrap(),
+            "--table",
+            "bench",
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // The CSV's lines per camera (`0`, `1`, `fused`), in frame order.
     let mut want: BTreeMap<String, Vec<String>> = BTreeMap::new();

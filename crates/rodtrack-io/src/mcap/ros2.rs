@@ -14,17 +14,11 @@ use rodtrack_core::{Measurement, Status};
 /// The joint states' schema name (ROS 2's `sensor_msgs/msg/JointState`).
 pub const JOINT_STATE_SCHEMA_NAME: &str = "sensor_msgs/msg/JointState";
 
-/// The joint state's message definition in ROS 2's `.msg` language, with the types it uses
-/// appended as rosbag2 writes them (a line of 80 `=`, `MSG: package/Type`, its definition).
-/// Comments are left out: the fields are those of ROS 2's `common_interfaces` and
-/// `rcl_interfaces`.
-pub const JOINT_STATE_MSGDEF: &str = "std_msgs/Header header\n\
-\n\
-string[] name\n\
-float64[] position\n\
-float64[] velocity\n\
-float64[] effort\n\
-\n\
+/// The definitions a stamped message uses, appended as rosbag2 writes them (a line of 80 `=`,
+/// `MSG: package/Type`, its definition): `std_msgs/Header` and `builtin_interfaces/Time`.
+macro_rules! header_definitions {
+    () => {
+        "\n\
 ================================================================================\n\
 MSG: std_msgs/Header\n\
 builtin_interfaces/Time stamp\n\
@@ -33,53 +27,54 @@ string frame_id\n\
 ================================================================================\n\
 MSG: builtin_interfaces/Time\n\
 int32 sec\n\
-uint32 nanosec\n";
+uint32 nanosec\n"
+    };
+}
+
+/// A stamped message of three `float64` (`x`, `y`, `z`): its field `field` of type
+/// `geometry_msgs/<ty>`, then the definitions it uses.
+macro_rules! stamped_xyz_definition {
+    ($ty:literal, $field:literal) => {
+        concat!(
+            "std_msgs/Header header\ngeometry_msgs/",
+            $ty,
+            " ",
+            $field,
+            "\n",
+            header_definitions!(),
+            "\n\
+================================================================================\n\
+MSG: geometry_msgs/",
+            $ty,
+            "\nfloat64 x\nfloat64 y\nfloat64 z\n"
+        )
+    };
+}
+
+/// The joint state's message definition in ROS 2's `.msg` language, with the types it uses
+/// appended as rosbag2 writes them. Comments are left out: the fields are those of ROS 2's
+/// `common_interfaces` and `rcl_interfaces`.
+pub const JOINT_STATE_MSGDEF: &str = concat!(
+    "std_msgs/Header header\n\
+\n\
+string[] name\n\
+float64[] position\n\
+float64[] velocity\n\
+float64[] effort\n",
+    header_definitions!()
+);
 
 /// `geometry_msgs/msg/PointStamped`'s schema name.
 pub const POINT_STAMPED_SCHEMA_NAME: &str = "geometry_msgs/msg/PointStamped";
 
 /// `geometry_msgs/msg/PointStamped`'s definition, with the types it uses appended.
-pub const POINT_STAMPED_MSGDEF: &str = "std_msgs/Header header\n\
-geometry_msgs/Point point\n\
-\n\
-================================================================================\n\
-MSG: std_msgs/Header\n\
-builtin_interfaces/Time stamp\n\
-string frame_id\n\
-\n\
-================================================================================\n\
-MSG: builtin_interfaces/Time\n\
-int32 sec\n\
-uint32 nanosec\n\
-\n\
-================================================================================\n\
-MSG: geometry_msgs/Point\n\
-float64 x\n\
-float64 y\n\
-float64 z\n";
+pub const POINT_STAMPED_MSGDEF: &str = stamped_xyz_definition!("Point", "point");
 
 /// `geometry_msgs/msg/Vector3Stamped`'s schema name.
 pub const VECTOR3_STAMPED_SCHEMA_NAME: &str = "geometry_msgs/msg/Vector3Stamped";
 
 /// `geometry_msgs/msg/Vector3Stamped`'s definition, with the types it uses appended.
-pub const VECTOR3_STAMPED_MSGDEF: &str = "std_msgs/Header header\n\
-geometry_msgs/Vector3 vector\n\
-\n\
-================================================================================\n\
-MSG: std_msgs/Header\n\
-builtin_interfaces/Time stamp\n\
-string frame_id\n\
-\n\
-================================================================================\n\
-MSG: builtin_interfaces/Time\n\
-int32 sec\n\
-uint32 nanosec\n\
-\n\
-================================================================================\n\
-MSG: geometry_msgs/Vector3\n\
-float64 x\n\
-float64 y\n\
-float64 z\n";
+pub const VECTOR3_STAMPED_MSGDEF: &str = stamped_xyz_definition!("Vector3", "vector");
 
 /// A ball row as ROS 2 messages: its centre (m, the table frame, `z` = `centre_z_m`: the
 /// ball's radius above the field) and its velocity (m/s, `z` 0), when it has a place
@@ -174,14 +169,7 @@ impl JointState {
         let valued = rows
             .map(|r| r.sanitized())
             .filter(|r| matches!(r.status, Status::Ok | Status::Predicted | Status::Conflict));
-        let mut stamp = JointState::default();
-        stamp.set_stamp_ns(time_ns);
-        out.clear();
-        out.extend_from_slice(&CDR_LE_HEADER);
-        let mut w = CdrWriter { out };
-        w.u32(stamp.stamp_sec as u32);
-        w.u32(stamp.stamp_nanosec);
-        w.string(frame_id);
+        let mut w = CdrWriter::stamped(out, time_ns, frame_id);
         let n = valued.clone().count();
         w.u32(2 * n as u32);
         for r in valued.clone() {
@@ -272,14 +260,7 @@ impl StampedXyz {
     /// The message in CDR, written into `out` (cleared first; no allocation once `out` has
     /// grown to a message's size).
     pub fn write_cdr(time_ns: u64, frame_id: &str, xyz: [f64; 3], out: &mut Vec<u8>) {
-        let mut stamp = JointState::default();
-        stamp.set_stamp_ns(time_ns);
-        out.clear();
-        out.extend_from_slice(&CDR_LE_HEADER);
-        let mut w = CdrWriter { out };
-        w.u32(stamp.stamp_sec as u32);
-        w.u32(stamp.stamp_nanosec);
-        w.string(frame_id);
+        let mut w = CdrWriter::stamped(out, time_ns, frame_id);
         w.align(8);
         for v in xyz {
             w.out.extend_from_slice(&v.to_le_bytes());
@@ -324,7 +305,20 @@ struct CdrWriter<'a> {
     out: &'a mut Vec<u8>,
 }
 
-impl CdrWriter<'_> {
+impl<'a> CdrWriter<'a> {
+    /// A writer into `out` (cleared first) past the encapsulation header and a
+    /// `std_msgs/Header` stamped `time_ns` with `frame_id`.
+    fn stamped(out: &'a mut Vec<u8>, time_ns: u64, frame_id: &str) -> CdrWriter<'a> {
+        let mut stamp = JointState::default();
+        stamp.set_stamp_ns(time_ns);
+        out.clear();
+        out.extend_from_slice(&CDR_LE_HEADER);
+        let mut w = CdrWriter { out };
+        w.u32(stamp.stamp_sec as u32);
+        w.u32(stamp.stamp_nanosec);
+        w.string(frame_id);
+        w
+    }
     fn align(&mut self, n: usize) {
         let at = self.out.len() - CDR_LE_HEADER.len();
         let pad = (n - at % n) % n;
@@ -539,6 +533,27 @@ mod tests {
             assert!(
                 ball_place_and_velocity(&row(status, x), 0.0175).is_none(),
                 "{status:?} {x}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_message_definitions_are_rosbag2s_text() {
+        let sep = "=".repeat(80);
+        let header = format!(
+            "\n{sep}\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n\n{sep}\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+        );
+        assert_eq!(
+            JOINT_STATE_MSGDEF,
+            format!("std_msgs/Header header\n\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n{header}")
+        );
+        for (def, ty, field) in [
+            (POINT_STAMPED_MSGDEF, "Point", "point"),
+            (VECTOR3_STAMPED_MSGDEF, "Vector3", "vector"),
+        ] {
+            assert_eq!(
+                def,
+                format!("std_msgs/Header header\ngeometry_msgs/{ty} {field}\n{header}\n{sep}\nMSG: geometry_msgs/{ty}\nfloat64 x\nfloat64 y\nfloat64 z\n")
             );
         }
     }

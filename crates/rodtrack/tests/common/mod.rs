@@ -97,3 +97,21 @@ pub fn two_cameras_of(name: &str, scenario: &str, frames: u64) -> (PathBuf, Path
     ]);
     (dir, calib)
 }
+
+/// `track` of a [`two_cameras`] folder's recording (`dir/rec/cam0`, `dir/rec/cam1`) with
+/// `calib` and the options `extra`.
+pub fn track_two_cameras(dir: &Path, calib: &Path, extra: &[&str]) -> Output {
+    let rec = dir.join("rec");
+    let (cam0, cam1) = (rec.join("cam0"), rec.join("cam1"));
+    let mut args = vec![
+        "track",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--input",
+        cam0.to_str().unwrap(),
+        "--input",
+        cam1.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    rodtrack(&args)
+}
