@@ -453,13 +453,16 @@ fn fuzz_measurement_files() {
 
 #[test]
 fn fuzz_mcap_recordings() {
+    use rodtrack_core::ball::{BallRow, BallStatus};
+    use rodtrack_core::CameraId;
     use rodtrack_io::mcap::{
-        parse_mcap, parse_rows_message, ChunkLimits, Compression, JointState, McapRecorder, Profile,
+        parse_ball_message, parse_mcap, parse_rows_message, ChunkLimits, Compression, JointState,
+        McapRecorder, Profile, StampedXyz,
     };
-    use rodtrack_io::MeasurementSink;
-    // Small real recordings (several chunks, two cameras and the fusion) as the seeds: what
-    // `rodtrack replay` reads, uncompressed and in LZ4 chunks, and a ROS 2 bag of joint
-    // states in CDR (LZ4 chunks).
+    use rodtrack_io::{BallSink, MeasurementSink};
+    // Small real recordings (several chunks, two cameras and the fusion, rods and ball) as the
+    // seeds: what `rodtrack replay` reads, uncompressed and in LZ4 chunks, and a ROS 2 bag of
+    // joint states and the ball's stamped points in CDR (LZ4 chunks).
     let dir = std::env::temp_dir().join(format!("rodtrack-fuzz-mcap-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut seeds = Vec::new();
@@ -488,7 +491,27 @@ fn fuzz_mcap_recordings() {
         )
         .unwrap();
         let mut sink = rec.sink();
+        let mut ball = rec.ball_sink(35.0);
         for f in 0..6u64 {
+            let t = rodtrack_core::Timestamp(5_000_000 * f);
+            let row = |camera, status| BallRow {
+                x_mm: -120.5 + f as f64,
+                y_mm: 33.25,
+                vx_mm_s: 800.0,
+                vy_mm_s: -150.0,
+                quality: 0.9,
+                status,
+                ..BallRow::lost(f, t, camera)
+            };
+            ball.write_sigma(
+                &[
+                    row(CameraId::Camera(0), BallStatus::Ok),
+                    row(CameraId::Camera(1), BallStatus::Lost),
+                    row(CameraId::Fused, BallStatus::Predicted),
+                ],
+                &[0.4, f64::INFINITY, f64::NAN],
+            )
+            .unwrap();
             let rows: Vec<Measurement> = sample_rows()
                 .into_iter()
                 .map(|mut m| {
@@ -513,6 +536,8 @@ fn fuzz_mcap_recordings() {
             for m in &file.messages {
                 let _ = parse_rows_message(&m.data);
                 let _ = JointState::from_cdr(&m.data);
+                let _ = parse_ball_message(&m.data);
+                let _ = StampedXyz::from_cdr(&m.data);
             }
         }
     });
