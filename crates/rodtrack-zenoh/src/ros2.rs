@@ -22,10 +22,9 @@
 //!   publisher's `@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/...` with, after the node
 //!   name, `/<topic>/<type>/<hash>/<qos>`; each `/` inside a name written `%`; a node's
 //!   publishers numbered from 1 after the node's own id 0, as rmw_zenoh's context numbers
-//!   its entities; the QoS as
-//!   rmw_zenoh writes it, a field left empty where it equals rmw_zenoh's default (reliable,
-//!   volatile, keep last 42, no deadline, lifespan or lease): `::,:,:,:,,` for this publisher,
-//!   which uses those defaults;
+//!   its entities; the QoS as rmw_zenoh writes it, a field left empty where it equals
+//!   rmw_zenoh's default (reliable, volatile, keep last 42, no deadline, lifespan or lease):
+//!   `::,:,:,:,,` for these publishers, which use those defaults;
 //! - **the GID** is the XXH3 128-bit hash of the publisher's liveliness key expression, its low
 //!   64 bits then its high 64 bits, little endian.
 //!
