@@ -1,17 +1,20 @@
-//! A remote console's view of a table: one subscriber to every node's rows, statuses and
-//! previews (`rodtrack console --subscribe zenoh`).
+//! A remote console's view of a table: one subscriber to every node's rows, statuses,
+//! previews and ball rows (`rodtrack console --subscribe zenoh`).
 //!
 //! Subscribed key expressions (`<table>` from the options):
-//! `rodtrack/<table>/cam/*/rows`, `.../cam/*/status`, `.../cam/*/preview`,
-//! `rodtrack/<table>/fused/rows`, `.../fused/status`. Each message is decoded and handed to
+//! `rodtrack/<table>/cam/*/rows`, `.../cam/*/status`, `.../cam/*/preview`, `.../cam/*/ball`,
+//! `rodtrack/<table>/fused/rows`, `.../fused/status`, `.../fused/ball`. Each message is decoded and handed to
 //! the callback as a [`NodeEvent`]; a message that does not decode (or a row message of the
 //! wrong kind, a status that is not a JSON object) is a [`NodeEvent::Malformed`], counted,
 //! never a panic.
 
+use crate::ball_layout::decode_ball;
 use crate::layout::{decode, Kind, Message};
 use crate::net::{camera_key, fused_key, NetworkOptions};
 use crate::preview::{decode_preview, PreviewMessage};
 use crate::ZenohError;
+use rodtrack_core::ball::BallRow;
+use rodtrack_core::CameraId;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use zenoh::pubsub::Subscriber;
@@ -57,6 +60,16 @@ pub enum NodeEvent<'a> {
         /// The status.
         status: serde_json::Value,
     },
+    /// A frame's ball rows: a camera node's own row, or the fusion node's (the cameras' rows,
+    /// then the fused one).
+    Ball {
+        /// The key expression it came on.
+        key: &'a str,
+        /// Its node.
+        node: Node,
+        /// The rows.
+        rows: Vec<BallRow>,
+    },
     /// A camera's preview frame.
     Preview {
         /// The key expression it came on.
@@ -95,6 +108,7 @@ enum What {
     Rows,
     Status,
     Preview,
+    Ball,
 }
 
 impl Monitor {
@@ -113,8 +127,10 @@ impl Monitor {
             (camera_key(&table, "*", "rows"), What::Rows),
             (camera_key(&table, "*", "status"), What::Status),
             (camera_key(&table, "*", "preview"), What::Preview),
+            (camera_key(&table, "*", "ball"), What::Ball),
             (fused_key(&table, "rows"), What::Rows),
             (fused_key(&table, "status"), What::Status),
+            (fused_key(&table, "ball"), What::Ball),
         ] {
             let (on_event, malformed) = (on_event.clone(), malformed.clone());
             let subscriber = session
@@ -208,6 +224,24 @@ fn interpret<'a>(key: &'a str, what: What, bytes: &[u8]) -> Result<NodeEvent<'a>
             }
             NodeEvent::Status { key, node, status }
         }
+        What::Ball => {
+            let rows: Vec<BallRow> = decode_ball(bytes)?.rows.into_iter().map(|r| r.0).collect();
+            // A camera node sends its own rows only; the fusion node ends with the fused one.
+            let fits = match &node {
+                Node::Camera(_) => rows.iter().all(|r| r.camera != CameraId::Fused),
+                Node::Fusion => rows.last().is_some_and(|r| r.camera == CameraId::Fused),
+            };
+            if !fits || rows.is_empty() {
+                return Err(ZenohError::Message(format!(
+                    "ball rows that are not the {}'s",
+                    match node {
+                        Node::Camera(_) => "camera node",
+                        Node::Fusion => "fusion node",
+                    }
+                )));
+            }
+            NodeEvent::Ball { key, node, rows }
+        }
         What::Preview => {
             if matches!(node, Node::Fusion) {
                 return Err(ZenohError::Message("a preview of the fusion node".into()));
@@ -258,5 +292,34 @@ mod tests {
             }
             ev => panic!("{ev:?}"),
         }
+        // Ball rows: a camera node's own, the fusion node's ending with the fused one.
+        let t = rodtrack_core::Timestamp(5);
+        let cam = BallRow::lost(1, t, CameraId::Camera(0));
+        let fused_row = BallRow::lost(1, t, CameraId::Fused);
+        let ball = |rows: &[BallRow]| {
+            let mut b = Vec::new();
+            crate::ball_layout::encode_ball(0, rows, &[], &mut Vec::new(), &mut b).unwrap();
+            b
+        };
+        for (key, rows) in [
+            ("rodtrack/t/cam/c/ball", vec![cam]),
+            ("rodtrack/t/fused/ball", vec![cam, fused_row]),
+        ] {
+            match interpret(key, What::Ball, &ball(&rows)).unwrap() {
+                NodeEvent::Ball { rows: got, .. } => assert_eq!(got, rows),
+                ev => panic!("{ev:?}"),
+            }
+        }
+        for (key, rows) in [
+            ("rodtrack/t/cam/c/ball", vec![fused_row]),
+            ("rodtrack/t/fused/ball", vec![fused_row, cam]),
+            ("rodtrack/t/fused/ball", vec![]),
+        ] {
+            assert!(
+                e(key, What::Ball, &ball(&rows)).contains("ball rows that are not"),
+                "{key}"
+            );
+        }
+        assert!(e("rodtrack/t/fused/ball", What::Ball, b"xx").contains("ball message"));
     }
 }

@@ -1,6 +1,7 @@
 //! `rodtrack console --subscribe zenoh`: the web console fed from a camera network: every
-//! camera node's rows, status and preview frames, the fusion node's fused rows and status
-//! (docs/network.md).
+//! camera node's rows, status and preview frames, the fusion node's fused rows and status,
+//! and the ball: the fusion node's, or a camera node's where the table has no fusion node
+//! publishing one (docs/network.md).
 
 use crate::console::Args;
 use anyhow::Result;
@@ -20,9 +21,9 @@ pub fn run(_args: &Args) -> Result<()> {
 pub fn run(args: &Args) -> Result<()> {
     use anyhow::Context;
     use rodtrack_console::{Console, ConsoleOptions, Preview};
-    use rodtrack_zenoh::monitor::{Monitor, NodeEvent};
+    use rodtrack_zenoh::monitor::{Monitor, Node, NodeEvent};
     use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
+    use std::sync::{Arc, Mutex};
     use std::time::{Duration, Instant};
 
     crate::interrupt::catch_early();
@@ -39,8 +40,22 @@ pub fn run(args: &Args) -> Result<()> {
         .context("cannot start the console")?,
     );
     let c = console.clone();
+    // The node whose ball is shown: the fusion node once it sends one, else the first camera
+    // node that does (each frame's rows shown once, not once per node).
+    let ball_from: Mutex<Option<Node>> = Mutex::new(None);
     let monitor = Monitor::open(&net, move |event| match event {
         NodeEvent::Rows { message, .. } => c.publish_rows(&message.rows),
+        NodeEvent::Ball { node, rows, .. } => {
+            let mut from = ball_from.lock().unwrap_or_else(|e| e.into_inner());
+            let shown = match (&*from, &node) {
+                (_, Node::Fusion) | (None, _) => true,
+                (Some(f), n) => f == n,
+            };
+            if shown {
+                *from = Some(node);
+                c.publish_ball(&rows);
+            }
+        }
         NodeEvent::Status { node, status, .. } => c.publish_node_status(&node.label(), status),
         NodeEvent::Preview { key, preview, .. } => {
             let h = preview.header;

@@ -1,5 +1,6 @@
 //! The web console fed from a camera network (feature `zenoh`): two camera nodes on `sim://`
-//! sources with preview frames, a fusion node and `rodtrack console --subscribe zenoh`, each
+//! sources (the `ball` scenario) with preview frames and their ball rows, a fusion node and
+//! `rodtrack console --subscribe zenoh`, each
 //! its own `rodtrack` process on explicit `tcp/127.0.0.1` endpoints with multicast scouting
 //! off; the test reads the console's live view (its WebSocket) as the page does.
 #![cfg(feature = "zenoh")]
@@ -36,6 +37,9 @@ struct Seen {
     frames: BTreeMap<u64, (Value, Vec<u8>)>,
     /// The last `remote` of a `stats` message.
     remote: Value,
+    /// The last `ball` message, and how many came with the ball seen (`ok`).
+    ball: Value,
+    balls_ok: u64,
 }
 
 impl Seen {
@@ -50,6 +54,10 @@ impl Seen {
                         }
                     }
                     Some("stats") => self.remote = v["remote"].clone(),
+                    Some("ball") => {
+                        self.balls_ok += u64::from(v["status"] == "ok");
+                        self.ball = v;
+                    }
                     _ => {}
                 }
             }
@@ -86,6 +94,7 @@ impl Seen {
         });
         self.row_cameras.is_superset(&BTreeSet::from([-1, 0, 1]))
             && self.frames.len() == 2
+            && self.balls_ok >= 3
             && cams_running
             && fused
     }
@@ -139,12 +148,12 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
     let mut nodes: Vec<Proc> = (0..2)
         .map(|cam| {
             let input = format!(
-                "sim://exp3?camera={cam}&frames={PRERENDER}&loop=1&prerender={PRERENDER}&realtime=1&trigger_unix_ms={t0}"
+                "sim://ball?camera={cam}&frames={PRERENDER}&loop=1&prerender={PRERENDER}&realtime=1&trigger_unix_ms={t0}"
             );
             Proc::start(
                 &strings(&[
                     "track", "--calib", &c, "--camera", &format!("cam{cam}"), "--input", &input,
-                    "--publish", "zenoh", "--zenoh-connect", &zf_ep, "--zenoh-connect", &zc_ep,
+                    "--publish", "zenoh", "--zenoh-ball", "--zenoh-connect", &zf_ep, "--zenoh-connect", &zc_ep,
                     "--preview-fps", "4", "--max-frames", &FRAMES.to_string(),
                 ]),
                 t.join(format!("cam{cam}.err")),
@@ -234,6 +243,14 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
         );
     }
     assert_eq!(seen.remote["malformed"], 0, "{}", seen.remote);
+    // The ball: the fusion node's fused row (not a camera node's), on the reference field,
+    // with its trail.
+    let b = &seen.ball;
+    assert_eq!(b["camera"], "fused", "{b}");
+    assert_eq!(b["field_mm"], serde_json::json!([1200.0, 680.0]), "{b}");
+    let (x, y) = (b["x_mm"].as_f64().unwrap(), b["y_mm"].as_f64().unwrap());
+    assert!(x.abs() < 600.0 && y.abs() < 340.0, "{b}");
+    assert!(b["trail"].as_array().is_some_and(|t| t.len() > 1), "{b}");
 
     // The camera nodes end: their last status says so, and they turn silent.
     for n in &mut nodes {
@@ -273,16 +290,31 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
         .put("rodtrack/default/fused/status", "not json")
         .wait()
         .unwrap();
-    let two = |s: &Seen| s.remote["malformed"] == 2;
+    // A camera node's ball message that holds a fused row.
+    let mut fused_row = Vec::new();
+    let row = rodtrack_core::ball::BallRow::lost(
+        1,
+        rodtrack_core::Timestamp(5_000_000),
+        rodtrack_core::CameraId::Fused,
+    );
+    rodtrack_zenoh::ball_layout::encode_ball(0, &[row], &[], &mut Vec::new(), &mut fused_row)
+        .unwrap();
+    session
+        .put("rodtrack/default/cam/cam1/ball", fused_row)
+        .wait()
+        .unwrap();
+    let three = |s: &Seen| s.remote["malformed"] == 3;
     assert!(
-        read_until(&mut seen, Duration::from_secs(10), &two),
+        read_until(&mut seen, Duration::from_secs(10), &three),
         "malformed messages not counted: {}",
         seen.remote
     );
     let errors = seen.remote["first_errors"].to_string();
     assert!(
         errors.contains(&format!("{bad_preview}: bad message: preview of 6 bytes"))
-            && errors.contains("rodtrack/default/fused/status: bad message: status JSON"),
+            && errors.contains("rodtrack/default/fused/status: bad message: status JSON")
+            && errors
+                .contains("cam/cam1/ball: bad message: ball rows that are not the camera node's"),
         "{errors}"
     );
     session.close().wait().unwrap();
@@ -297,7 +329,7 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
         )),
         "{log}"
     );
-    assert!(log.contains("2 malformed message(s) received"), "{log}");
+    assert!(log.contains("3 malformed message(s) received"), "{log}");
 }
 
 /// A zenoh session of the test's own, connected to `endpoint` (scouting off), once the peer
