@@ -251,7 +251,7 @@ impl BallSink for CameraBallSink {
         {
             if let Err(e) = n.count(p.publish(r).map(|_| ())) {
                 ros2_result = ros2_result.and(Err(IoError::Net {
-                    addr: "ROS 2 ball topics".to_string(),
+                    addr: p.key().to_string(),
                     source: std::io::Error::other(e.to_string()),
                 }));
             }

@@ -476,6 +476,11 @@ impl Ros2BallPublisher {
         let second = self.velocity.put(&cdr);
         first.and(second).map(|()| true)
     }
+
+    /// The key expression of the ball's place (its velocity's is beside it).
+    pub fn key(&self) -> &str {
+        self.position.publisher.key_expr().as_str()
+    }
 }
 
 #[cfg(test)]

@@ -75,7 +75,7 @@ impl BallSink for Out {
                 if let Err(e) = p.publish(r) {
                     if first.is_ok() {
                         first = Err(IoError::Net {
-                            addr: "ROS 2 ball topics".to_string(),
+                            addr: p.key().to_string(),
                             source: std::io::Error::other(e.to_string()),
                         });
                     }
