@@ -211,6 +211,12 @@ pub fn replay(
             let fused_ball = carries.contains(&Carries::Ball(true));
             let ball = match ball_diameter_mm {
                 Some(d) if fused_ball => Some(Ros2BallPublisher::declare(&session, &node, d)?),
+                None if fused_ball => {
+                    // A recording of another writer: its ball channels do not say the ball's
+                    // size, and the centre's height would be a guess.
+                    warn("the recording's ball channels have no ball_diameter_mm: the ball is replayed on rodtrack's keys, not for ROS 2");
+                    None
+                }
                 _ => None,
             };
             (Some(joints), ball)

@@ -48,10 +48,18 @@ impl McapRecorder {
     /// A ball sink whose rows are recorded; `diameter_mm` is the ball's (its centre's height
     /// in a ROS 2 bag).
     pub fn ball_sink(&self, diameter_mm: f64) -> McapBallSink {
-        self.lock().ball_diameter_mm = Some(diameter_mm);
+        let mut inner = self.lock();
+        inner.ball_diameter_mm = Some(diameter_mm);
+        let table = match inner.options.table.as_str() {
+            "" => "default",
+            t => t,
+        };
+        let frame_id = format!("rodtrack/{}", ros_name_token(table));
+        drop(inner);
         McapBallSink {
             recorder: self.clone(),
             centre_z_m: diameter_mm * 0.5e-3,
+            frame_id,
         }
     }
 }
@@ -60,6 +68,8 @@ impl McapRecorder {
 pub struct McapBallSink {
     recorder: McapRecorder,
     centre_z_m: f64,
+    /// The table frame's id in a ROS 2 bag (`rodtrack/<table>`).
+    frame_id: String,
 }
 
 impl BallSink for McapBallSink {
@@ -76,15 +86,10 @@ impl BallSink for McapBallSink {
                 let Some((p, v)) = ball_place_and_velocity(&row, self.centre_z_m) else {
                     continue;
                 };
-                let table = match inner.options.table.as_str() {
-                    "" => "default",
-                    t => t,
-                };
-                let frame_id = format!("rodtrack/{}", ros_name_token(table));
                 let mut cdr = std::mem::take(&mut inner.cdr);
-                StampedXyz::write_cdr(time_ns, &frame_id, p, &mut cdr);
+                StampedXyz::write_cdr(time_ns, &self.frame_id, p, &mut cdr);
                 let r = inner.message(Topic::BallPoint(row.camera), time_ns, &cdr);
-                StampedXyz::write_cdr(time_ns, &frame_id, v, &mut cdr);
+                StampedXyz::write_cdr(time_ns, &self.frame_id, v, &mut cdr);
                 let r = r.and(inner.message(Topic::BallVelocity(row.camera), time_ns, &cdr));
                 inner.cdr = cdr;
                 r?;
