@@ -4,7 +4,7 @@
 # camera nodes on sim:// sources and a fusion node on explicit tcp/127.0.0.1
 # endpoints, multicast scouting off; a camera node killed and restarted), bounded in time; an
 # MCAP recording replayed on the network (`replay`); the web console fed from the network
-# (`console --subscribe zenoh`: rows, statuses, previews); lints the binary and rodtrack-zenoh with
+# (`console --subscribe zenoh`: rows, statuses, previews); the ball and its events; lints the binary and rodtrack-zenoh with
 # `video`, `genicam` and `zenoh` on (one feature set, built once); a short run of the latency
 # benchmark across processes (`bench-zenoh`: its numbers are printed, not checked; it fails on
 # rows lost); the Python and the Rust subscriber examples against a fusion node and camera
@@ -18,7 +18,8 @@ features=rodtrack/video,rodtrack/genicam,rodtrack/zenoh
 
 echo "== zenoh: unit tests, the three-process network test and the replay (loopback)"
 timeout 900 cargo test --release -p rodtrack -p rodtrack-zenoh --features "$features" \
-    --lib --test zenoh_network --test zenoh_ball --test zenoh_replay --test zenoh_console -- --test-threads=1
+    --lib --test zenoh_network --test zenoh_ball --test zenoh_events --test zenoh_replay \
+    --test zenoh_console -- --test-threads=1
 
 # Release profile, after the release build above: zenoh's build scripts and proc macros (and
 # FFmpeg's bindings) are reused, only the crates are checked again.

@@ -1,13 +1,15 @@
 //! The ball in a session: each camera's [`BallTracker`] runs on the frames its tracker reads,
 //! and the rows go, in frame order, to a [`BallSink`] ([`crate::Session::with_ball`]).
 
+mod events;
+
 use crate::SdkError;
-use rodtrack_core::ball::events::{
-    BallEvent, EventConfig, EventDetector, EventKind, TableGeometry,
-};
+pub use events::EventCounts;
+use events::{camera_index, EventStage};
+use rodtrack_core::ball::events::EventConfig;
 use rodtrack_core::ball::{BallFuser, BallRow, BallStatus, BallTracker, CameraBall};
 use rodtrack_core::calib::CalibrationFile;
-use rodtrack_core::{Measurement, Status};
+use rodtrack_core::Measurement;
 use rodtrack_io::{BallSink, EventSink};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -17,11 +19,6 @@ use std::time::{Duration, Instant};
 /// comes, out of frame order, never dropped; from recordings, the cameras ahead wait instead
 /// ([`BallFeed::push`]), so the rows and events do not depend on the threads' timing.
 const MAX_PENDING_ROWS: usize = 400;
-
-/// The most rod angles held for the events until their frame's ball row (as many frames as
-/// [`MAX_PENDING_ROWS`], 8 rods each); more are dropped (the shot's rod then falls back to
-/// the nearest axis).
-const MAX_PENDING_RODS: usize = MAX_PENDING_ROWS * 8;
 
 /// Counts of the ball rows a session wrote.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -34,125 +31,6 @@ pub struct BallCounts {
     pub lost: u64,
     /// Rows `conflict` (fused rows whose cameras disagree).
     pub conflict: u64,
-}
-
-/// Counts of the events a session wrote ([`crate::Session::with_events`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct EventCounts {
-    /// Goals.
-    pub goals: u64,
-    /// Shots.
-    pub shots: u64,
-    /// Balls out of play.
-    pub ball_out: u64,
-    /// Balls stopped.
-    pub ball_stopped: u64,
-    /// The final score, `[side A, side B]`.
-    pub score: [u32; 2],
-}
-
-/// The events of the frame sets' ball rows: the detector and its sink.
-struct EventStage {
-    det: EventDetector,
-    sink: Box<dyn EventSink>,
-    /// The events of one write, kept for its capacity.
-    buf: Vec<BallEvent>,
-    /// The last frame given to the detector (a row that comes later, out of order, is not).
-    last_frame: Option<u64>,
-    /// Trusted rod angles `(frame, rod, time, angle_rad)` waiting for their frame's ball row:
-    /// given to the detector in frame order with the ball rows (a camera ahead of the others
-    /// would otherwise push the kick's swing out of the detector's window before the shot
-    /// is decided).
-    pending_rods: Vec<PendingRod>,
-    counts: EventCounts,
-    error: Option<String>,
-}
-
-/// A rod's trusted angle waiting for its frame's ball row.
-#[derive(Debug, Clone, Copy)]
-struct PendingRod {
-    frame: u64,
-    camera: u32,
-    rod: u32,
-    t: rodtrack_core::Timestamp,
-    angle_rad: f64,
-}
-
-impl EventStage {
-    fn push(&mut self, row: &BallRow) {
-        if self.last_frame.is_some_and(|f| row.frame <= f) {
-            return;
-        }
-        self.last_frame = Some(row.frame);
-        // In frame order, cameras in index order: the detector keeps the first angle of a
-        // rod at a time, whichever camera's thread came first.
-        self.pending_rods
-            .sort_unstable_by_key(|r| (r.frame, r.camera, r.rod));
-        for r in self
-            .pending_rods
-            .iter()
-            .take_while(|r| r.frame <= row.frame)
-        {
-            self.det.push_rod_angle(r.rod, r.t, r.angle_rad);
-        }
-        self.pending_rods.retain(|r| r.frame > row.frame);
-        self.det.push(row, &mut self.buf);
-    }
-
-    /// The rods' angles of one camera's frame (trusted rows only), for the shot's rod.
-    fn push_rods(&mut self, rows: &[Measurement]) {
-        for m in rows.iter().filter(|m| m.status == Status::Ok) {
-            if self.last_frame.is_some_and(|f| m.frame <= f) {
-                // Its frame's ball row is gone: now.
-                self.det.push_rod_angle(m.rod, m.timestamp_ns, m.angle_rad);
-            } else if self.pending_rods.len() < MAX_PENDING_RODS {
-                self.pending_rods.push(PendingRod {
-                    frame: m.frame,
-                    camera: camera_index(m.camera),
-                    rod: m.rod,
-                    t: m.timestamp_ns,
-                    angle_rad: m.angle_rad,
-                });
-            }
-        }
-    }
-
-    /// Writes the events decided so far (counted), keeping the first error.
-    fn write(&mut self) {
-        if self.buf.is_empty() {
-            return;
-        }
-        for e in &self.buf {
-            match e.kind {
-                EventKind::Goal { .. } => self.counts.goals += 1,
-                EventKind::Shot { .. } => self.counts.shots += 1,
-                EventKind::BallOut { .. } => self.counts.ball_out += 1,
-                EventKind::BallStopped { .. } => self.counts.ball_stopped += 1,
-            }
-        }
-        self.counts.score = self.det.score();
-        if self.error.is_none() {
-            if let Err(e) = self.sink.write(&self.buf) {
-                self.error = Some(e.to_string());
-            }
-        }
-        self.buf.clear();
-    }
-
-    fn finish(&mut self) -> Result<EventCounts, SdkError> {
-        self.det.finish(&mut self.buf);
-        self.write();
-        self.counts.score = self.det.score();
-        if self.error.is_none() {
-            if let Err(e) = self.sink.flush() {
-                self.error = Some(e.to_string());
-            }
-        }
-        match &self.error {
-            Some(e) => Err(SdkError::Runtime(format!("writing the events: {e}"))),
-            None => Ok(self.counts),
-        }
-    }
 }
 
 /// The cameras' ball rows of frame sets put together away from their trackers (a network's
@@ -182,9 +60,36 @@ impl BallSets {
         self.0.push(camera, row, sigma_mm);
     }
 
+    /// Detects the events of the frame sets' rows too (the `fused` row with several cameras,
+    /// else the camera's), as [`crate::Session::with_events`] does: the table of `cal`, the
+    /// rules `cfg`, into `sink`. The shot's rod comes from the rods' rows given to
+    /// [`BallSets::push_rods`].
+    pub fn with_events(
+        mut self,
+        cal: &CalibrationFile,
+        cfg: EventConfig,
+        sink: Box<dyn EventSink>,
+    ) -> Result<BallSets, SdkError> {
+        self.0.events = Some(EventStage::new(cal, cfg, sink)?);
+        Ok(self)
+    }
+
+    /// Takes a camera's measured rod rows of a frame (before its filter, as its tracker wrote
+    /// them), best before the camera's ball row of the frame: their angles tell the events
+    /// which rod kicked. Nothing without events.
+    pub fn push_rods(&mut self, rows: &[Measurement]) {
+        self.0.push_rods(rows);
+    }
+
     /// Writes what is pending and flushes: the counts, or the first error.
     pub fn finish(&mut self) -> Result<BallCounts, SdkError> {
         self.0.finish()
+    }
+
+    /// After [`BallSets::finish`]: the events' last decisions written and flushed, and their
+    /// counts (`None` without events), or the first error.
+    pub fn finish_events(&mut self) -> Result<Option<EventCounts>, SdkError> {
+        self.0.events.as_mut().map(|e| e.finish()).transpose()
     }
 }
 
@@ -307,19 +212,8 @@ impl BallStage {
         cfg: EventConfig,
         sink: Box<dyn EventSink>,
     ) -> Result<(), SdkError> {
-        let geom = TableGeometry::from_calibration(cal, &cfg)
-            .map_err(|e| SdkError::core("the events", e))?;
-        let det = EventDetector::new(geom, cfg).map_err(|e| SdkError::core("the events", e))?;
-        let mut w = self.shared.lock()?;
-        w.events = Some(EventStage {
-            det,
-            sink,
-            buf: Vec::with_capacity(64),
-            last_frame: None,
-            pending_rods: Vec::with_capacity(MAX_PENDING_RODS),
-            counts: EventCounts::default(),
-            error: None,
-        });
+        let stage = EventStage::new(cal, cfg, sink)?;
+        self.shared.lock()?.events = Some(stage);
         Ok(())
     }
 
@@ -584,14 +478,6 @@ impl BallWriter {
 
 fn cam_key(r: &BallRow) -> u32 {
     camera_index(r.camera)
-}
-
-/// A camera's index, the fused rows after every camera.
-fn camera_index(c: rodtrack_core::CameraId) -> u32 {
-    match c {
-        rodtrack_core::CameraId::Camera(i) => i,
-        rodtrack_core::CameraId::Fused => u32::MAX,
-    }
 }
 
 #[cfg(test)]

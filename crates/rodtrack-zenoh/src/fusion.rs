@@ -36,7 +36,7 @@ use zenoh::Wait;
 mod ball;
 mod status;
 mod watch;
-pub use ball::BallReport;
+pub use ball::{BallReport, FusionEvents};
 use status::status_json;
 pub use watch::CameraState;
 use watch::{CameraWatch, Watch};
@@ -328,23 +328,41 @@ impl std::fmt::Display for FusionReport {
                 "  ball rows: {} ok, {} predicted, {} lost, {} conflict; {} ball message(s) refused",
                 c.ok, c.predicted, c.lost, c.conflict, b.refused
             )?;
+            if let Some(e) = &b.events {
+                writeln!(
+                    f,
+                    "  events: {} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
+                    e.goals, e.score[0], e.score[1], e.shots, e.ball_out, e.ball_stopped
+                )?;
+            }
         }
         Ok(())
     }
+}
+
+/// Where the fusion node's ball goes besides the network.
+#[derive(Default)]
+pub struct BallOutputs {
+    /// Every camera's ball rows and the fused ones.
+    pub rows: Option<Box<dyn rodtrack_io::BallSink>>,
+    /// Detect the ball's events (goals with the score, shots, ball out, ball stopped) from the
+    /// fused rows, as an in-process session does: published on `.../fused/events` when
+    /// publishing, and into the sink given.
+    pub events: Option<FusionEvents>,
 }
 
 /// Runs the fusion node until `stop` is set: subscribes to every camera of `cal`, fuses, and
 /// writes every camera's filtered rows and the fused rows into `sink` (as `track` writes them
 /// for local cameras), publishing the fused rows when [`FusionOptions::publish`]. The camera
 /// nodes' ball rows (of the cameras with a ball calibration) are fused per frame too, into
-/// `ball` and, when publishing, onto `.../fused/ball`. `log` gets the cameras' losses and
-/// returns and the messages refused.
+/// `ball.rows` and, when publishing, onto `.../fused/ball`; with `ball.events`, they give the
+/// events too. `log` gets the cameras' losses and returns and the messages refused.
 pub fn run_fusion<S: MeasurementSink + 'static>(
     cal: &CalibrationFile,
     net: &NetworkOptions,
     options: &FusionOptions,
     sink: S,
-    ball: Option<Box<dyn rodtrack_io::BallSink>>,
+    ball: BallOutputs,
     stop: Arc<AtomicBool>,
     log: Box<dyn Fn(&str) + Send + Sync>,
 ) -> Result<(FusionReport, S), ZenohError> {
@@ -426,26 +444,28 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
         (Some(node), Some(d)) => Some(Ros2BallPublisher::declare(&session, node, d)?),
         _ => None,
     };
-    let ball_cameras: Vec<(String, u32)> = cal
-        .cameras
-        .iter()
-        .filter(|c| c.ball.is_some())
-        .map(|c| (c.name.clone(), c.index))
-        .collect();
-    let ball_fusion = if ball_cameras.is_empty() {
+    let ball_fusion = if ball_diameter_mm.is_none() {
+        if ball.events.is_some() {
+            return Err(ZenohError::Invalid(
+                "the events need the ball: no camera of the calibration has `[cameras.ball]`"
+                    .into(),
+            ));
+        }
         None
     } else {
         Some(ball::BallFusion::start(
             &session,
             &table,
-            ball_cameras,
+            cal,
             options.loss_periods.ceil() as u64,
             options.publish.then_some(net.format),
             ros2_ball,
-            ball,
+            ball.rows,
+            ball.events,
             log.clone(),
         )?)
     };
+    let rods_for_events = ball_fusion.as_ref().and_then(ball::BallFusion::rods);
     let grouping = match options.grouping {
         SetGrouping::FrameId => Grouping::FrameId,
         SetGrouping::Timestamp => Grouping::Timestamp {
@@ -563,6 +583,10 @@ pub fn run_fusion<S: MeasurementSink + 'static>(
                     "a row of camera {} where the calibration has camera {} ({}): is the node's calibration the same?",
                     r.camera, cam.index, cam.name
                 ));
+            }
+            if let (Some(tx), Kind::CameraRaw) = (&rods_for_events, m.header.kind) {
+                // Before the camera's ball row of the frame, which comes after on the link.
+                let _ = tx.try_send(ball::Feed::Rods(m.rows.clone()));
             }
             if senders[pos].try_send(m).is_err() {
                 refuse("the fusion is behind: queue full, message dropped".into());

@@ -3,7 +3,8 @@
 //!
 //! Subscribed key expressions (`<table>` from the options):
 //! `rodtrack/<table>/cam/*/rows`, `.../cam/*/status`, `.../cam/*/preview`, `.../cam/*/ball`,
-//! `rodtrack/<table>/fused/rows`, `.../fused/status`, `.../fused/ball`. Each message is decoded and handed to
+//! `rodtrack/<table>/fused/rows`, `.../fused/status`, `.../fused/ball`, `.../fused/events`. Each
+//! message is decoded and handed to
 //! the callback as a [`NodeEvent`]; a message that does not decode (or a row message of the
 //! wrong kind, a status that is not a JSON object) is a [`NodeEvent::Malformed`], counted,
 //! never a panic.
@@ -13,8 +14,11 @@ use crate::layout::{decode, Kind, Message};
 use crate::net::{camera_key, fused_key, NetworkOptions};
 use crate::preview::{decode_preview, PreviewMessage};
 use crate::ZenohError;
+use rodtrack_core::ball::events::BallEvent;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::CameraId;
+use rodtrack_io::parse_event_json;
+use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use zenoh::pubsub::Subscriber;
@@ -70,6 +74,13 @@ pub enum NodeEvent<'a> {
         /// The rows.
         rows: Vec<BallRow>,
     },
+    /// One of the ball's events (the fusion node's, as a line of `--events-out`).
+    Event {
+        /// The key expression it came on.
+        key: &'a str,
+        /// The event.
+        event: BallEvent,
+    },
     /// A camera's preview frame.
     Preview {
         /// The key expression it came on.
@@ -109,6 +120,7 @@ enum What {
     Status,
     Preview,
     Ball,
+    Event,
 }
 
 impl Monitor {
@@ -131,6 +143,7 @@ impl Monitor {
             (fused_key(&table, "rows"), What::Rows),
             (fused_key(&table, "status"), What::Status),
             (fused_key(&table, "ball"), What::Ball),
+            (fused_key(&table, "events"), What::Event),
         ] {
             let (on_event, malformed) = (on_event.clone(), malformed.clone());
             let subscriber = session
@@ -242,6 +255,16 @@ fn interpret<'a>(key: &'a str, what: What, bytes: &[u8]) -> Result<NodeEvent<'a>
             }
             NodeEvent::Ball { key, node, rows }
         }
+        What::Event => {
+            if matches!(node, Node::Camera(_)) {
+                return Err(ZenohError::Message("events of a camera node".into()));
+            }
+            let text = std::str::from_utf8(bytes)
+                .map_err(|_| ZenohError::Message("an event that is not UTF-8 text".into()))?;
+            let event = parse_event_json(text, Path::new(key), 1)
+                .map_err(|e| ZenohError::Message(format!("event: {e}")))?;
+            NodeEvent::Event { key, event }
+        }
         What::Preview => {
             if matches!(node, Node::Fusion) {
                 return Err(ZenohError::Message("a preview of the fusion node".into()));
@@ -321,5 +344,17 @@ mod tests {
             );
         }
         assert!(e("rodtrack/t/fused/ball", What::Ball, b"xx").contains("ball message"));
+        // Events: the fusion node's, each a line of `--events-out`.
+        let goal = br#"{"frame":93,"timestamp_s":0.465000,"event":"goal","side":"a","goal":"b","score":[1,0]}"#;
+        match interpret("rodtrack/t/fused/events", What::Event, goal).unwrap() {
+            NodeEvent::Event { event, .. } => {
+                assert_eq!(event.frame, 93);
+                assert_eq!(event.kind.name(), "goal");
+            }
+            ev => panic!("{ev:?}"),
+        }
+        assert!(e("rodtrack/t/cam/c/events", What::Event, goal).contains("camera node"));
+        assert!(e("rodtrack/t/fused/events", What::Event, b"{\"frame\":1}").contains("event:"));
+        assert!(e("rodtrack/t/fused/events", What::Event, &[0xff, 0xfe]).contains("UTF-8"));
     }
 }

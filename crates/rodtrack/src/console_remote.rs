@@ -1,7 +1,7 @@
 //! `rodtrack console --subscribe zenoh`: the web console fed from a camera network: every
 //! camera node's rows, status and preview frames, the fusion node's fused rows and status,
 //! and the ball: the fusion node's, or a camera node's where the table has no fusion node
-//! publishing one (docs/network.md).
+//! publishing one, with the fusion node's events and score (docs/network.md).
 
 use crate::console::Args;
 use anyhow::Result;
@@ -56,6 +56,7 @@ pub fn run(args: &Args) -> Result<()> {
                 c.publish_ball(&rows);
             }
         }
+        NodeEvent::Event { event, .. } => c.publish_events(&[event]),
         NodeEvent::Status { node, status, .. } => c.publish_node_status(&node.label(), status),
         NodeEvent::Preview { key, preview, .. } => {
             let h = preview.header;

@@ -38,6 +38,16 @@ pub struct Args {
     /// --ball-out`. With --publish they go on `rodtrack/<table>/fused/ball` too.
     #[arg(long)]
     pub ball_out: Option<PathBuf>,
+    /// The ball's events, from the fused ball rows (and the camera nodes' rods for the
+    /// shot's rod) as `track` detects them; with --publish they go on
+    /// `rodtrack/<table>/fused/events` too.
+    #[command(flatten)]
+    pub events: crate::event_args::EventArgs,
+    /// With --publish: detect the ball's events and publish them on
+    /// `rodtrack/<table>/fused/events` (one JSON object per event, as a line of
+    /// --events-out), with or without --events-out.
+    #[arg(long, requires = "publish")]
+    pub zenoh_events: bool,
     /// Publish the fused rows on `rodtrack/<table>/fused/rows`.
     #[arg(long, value_enum)]
     pub publish: Option<NetworkArg>,
@@ -94,6 +104,16 @@ pub fn run(args: Args) -> Result<()> {
         let out = args.out.clone().unwrap_or_default();
         rodtrack_sdk::check_out_is_not_an_input(m, &[&args.calib, &out])?;
     }
+    if let Some(e) = &args.events.events_out {
+        let out = args.out.clone().unwrap_or_default();
+        let mut taken: Vec<&std::path::Path> = vec![&args.calib, &out];
+        taken.extend(args.ball_out.as_deref());
+        taken.extend(args.mcap.as_deref());
+        rodtrack_sdk::check_out_is_not_an_input(e, &taken)?;
+    }
+    let detected = args.events.events_out.is_some() || args.zenoh_events;
+    args.events
+        .config(detected, "--events-out FILE or --zenoh-events")?;
     run_node(args)
 }
 
@@ -106,7 +126,9 @@ fn run_node(_args: Args) -> Result<()> {
 fn run_node(args: Args) -> Result<()> {
     use anyhow::Context;
     use rodtrack_sdk::{open_sinks, RowFormat};
-    use rodtrack_zenoh::fusion::{run_fusion, FusionOptions, SetGrouping};
+    use rodtrack_zenoh::fusion::{
+        run_fusion, BallOutputs, FusionEvents, FusionOptions, SetGrouping,
+    };
     use std::sync::atomic::AtomicBool;
     use std::sync::Arc;
 
@@ -210,12 +232,38 @@ fn run_node(args: Args) -> Result<()> {
         }
         (None, ball) => ball,
     };
+    let events = if args.events.events_out.is_some() || args.zenoh_events {
+        if cal.cameras.iter().all(|c| c.ball.is_none()) {
+            bail!(
+                "the events (--events-out, --zenoh-events) need the ball: no camera of {} has a ball calibration (`[cameras.ball]`)",
+                args.calib.display()
+            );
+        }
+        let sink = match &args.events.events_out {
+            Some(path) => Some(Box::new(
+                rodtrack_io::EventJsonlSink::create(path)
+                    .with_context(|| format!("creating the events output {}", path.display()))?,
+            ) as Box<dyn rodtrack_io::EventSink>),
+            None => None,
+        };
+        if options.publish {
+            eprintln!("the ball's events on rodtrack/{table}/fused/events");
+        }
+        Some(FusionEvents {
+            config: args
+                .events
+                .config(true, "--events-out FILE or --zenoh-events")?,
+            sink,
+        })
+    } else {
+        None
+    };
     let (report, sink) = run_fusion(
         &cal,
         &net,
         &options,
         sink,
-        ball,
+        BallOutputs { rows: ball, events },
         stop,
         Box::new(|msg: &str| eprintln!("{msg}")),
     )
@@ -230,6 +278,12 @@ fn run_node(args: Args) -> Result<()> {
             report.pipeline.sink_errors,
             report.pipeline.first_sink_error.as_deref().unwrap_or("?")
         );
+    }
+    if let (Some(path), Some(e)) = (
+        &args.events.events_out,
+        report.ball.as_ref().and_then(|b| b.events),
+    ) {
+        println!("{}", crate::event_args::written(path, &e));
     }
     for out in args.out.iter().chain(&args.ball_out) {
         println!("wrote {}", out.display());

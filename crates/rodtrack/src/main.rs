@@ -11,6 +11,7 @@ mod console_hooks;
 mod console_remote;
 mod demo;
 mod evaluate;
+mod event_args;
 mod fuse;
 mod interrupt;
 mod marker;

@@ -69,18 +69,9 @@ pub struct Args {
     /// (table frame, docs/ball.md); JSON Lines with the same fields for `.jsonl` or `.json`.
     #[arg(long)]
     pub ball_out: Option<PathBuf>,
-    /// Detect the ball's events (tracking the ball, with or without --ball-out) and write
-    /// them to this JSON Lines file, one object per event: `goal`, `shot`, `ball_out`,
-    /// `ball_stopped` (docs/formats.md). Needs the table frame in the calibration.
-    #[arg(long)]
-    pub events_out: Option<PathBuf>,
-    /// The goal mouth's width, mm (the reference table's 205 by default).
-    #[arg(long)]
-    pub goal_width_mm: Option<f64>,
-    /// The event rules' constants (TOML: any field of the events' configuration, e.g.
-    /// `goal_grace_s = 0.8`, `field_length_mm = 1140`; docs/ball.md); --goal-width-mm wins.
-    #[arg(long)]
-    pub events_config: Option<PathBuf>,
+    /// The ball's events.
+    #[command(flatten)]
+    pub events: crate::event_args::EventArgs,
     /// Run as a camera node of a camera network: publish this camera's rows (docs/network.md).
     #[arg(long, value_enum)]
     pub publish: Option<crate::network::NetworkArg>,
@@ -109,28 +100,6 @@ pub struct Args {
     /// The MCAP recording.
     #[command(flatten)]
     pub mcap: crate::recording::McapArgs,
-}
-
-/// The event rules from `--events-config` and `--goal-width-mm` (the defaults otherwise).
-fn event_config(args: &Args) -> Result<rodtrack_core::ball::events::EventConfig> {
-    let mut cfg = match &args.events_config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading the events configuration {}", path.display()))?;
-            toml::from_str(&text)
-                .with_context(|| format!("the events configuration {}", path.display()))?
-        }
-        None => rodtrack_core::ball::events::EventConfig::default(),
-    };
-    if let Some(w) = args.goal_width_mm {
-        cfg.goal_width_mm = w;
-    }
-    if args.events_out.is_none() && (args.events_config.is_some() || args.goal_width_mm.is_some()) {
-        bail!("--events-config and --goal-width-mm set the events' rules: give --events-out FILE");
-    }
-    cfg.validate()
-        .context("the events' rules (--events-config, --goal-width-mm)")?;
-    Ok(cfg)
 }
 
 /// Parses `FRAME:ROD:TURNS`.
@@ -211,12 +180,14 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(b) = &args.ball_out {
         check_out_is_not_an_input(b, &[&args.calib, &out])?;
     }
-    if let Some(e) = &args.events_out {
+    if let Some(e) = &args.events.events_out {
         let mut taken: Vec<&std::path::Path> = vec![&args.calib, &out];
         taken.extend(args.ball_out.as_deref());
         check_out_is_not_an_input(e, &taken)?;
     }
-    let events_config = event_config(&args)?;
+    let events_config = args
+        .events
+        .config(args.events.events_out.is_some(), "--events-out FILE")?;
     let mut cal = read_calibration(&args.calib)?;
     let mode = args.mode.into();
     if args.publish.is_some() {
@@ -280,7 +251,7 @@ pub fn run(args: Args) -> Result<()> {
     let cameras = cal.cameras.iter().map(|c| (c.index, c.name.clone()));
     let recording = crate::recording::open(&args.mcap, &args.net.table, cameras.collect())?;
     let ball_on_network = args.zenoh_ball && node.is_some();
-    if args.ball_out.is_some() || args.events_out.is_some() || ball_on_network {
+    if args.ball_out.is_some() || args.events.events_out.is_some() || ball_on_network {
         let mut sink = rodtrack_io::BallMultiSink::new();
         // A recording holds the ball's rows when the ball is tracked.
         if let Some(s) = recording
@@ -318,7 +289,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         session = session.with_ball(&cal, Box::new(sink))?;
     }
-    if let Some(path) = &args.events_out {
+    if let Some(path) = &args.events.events_out {
         let file = rodtrack_io::EventJsonlSink::create(path)
             .with_context(|| format!("creating the events output {}", path.display()))?;
         let mut sink = rodtrack_io::EventMultiSink::new();
@@ -418,17 +389,8 @@ pub fn run(args: Args) -> Result<()> {
             b.lost
         );
     }
-    if let (Some(path), Some(e)) = (&args.events_out, report.events) {
-        println!(
-            "wrote {}: {} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
-            path.display(),
-            e.goals,
-            e.score[0],
-            e.score[1],
-            e.shots,
-            e.ball_out,
-            e.ball_stopped
-        );
+    if let (Some(path), Some(e)) = (&args.events.events_out, report.events) {
+        println!("{}", crate::event_args::written(path, &e));
     }
     match &args.out {
         Some(o) if o.as_os_str() == "-" => eprintln!("wrote standard output"),

@@ -1,7 +1,7 @@
 //! The web console fed from a camera network (feature `zenoh`): two camera nodes on `sim://`
 //! sources (the `ball` scenario) with preview frames and their ball rows, a fusion node and
 //! `rodtrack console --subscribe zenoh`, each
-//! its own `rodtrack` process on explicit `tcp/127.0.0.1` endpoints with multicast scouting
+//! its own `rodtrack` process (the fusion node's events come from the test's own session) on explicit `tcp/127.0.0.1` endpoints with multicast scouting
 //! off; the test reads the console's live view (its WebSocket) as the page does.
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
@@ -40,6 +40,8 @@ struct Seen {
     /// The last `ball` message, and how many came with the ball seen (`ok`).
     ball: Value,
     balls_ok: u64,
+    /// The last `events` of a `stats` message (score and last events).
+    events: Value,
 }
 
 impl Seen {
@@ -53,7 +55,10 @@ impl Seen {
                             self.row_cameras.insert(r[1].as_i64().unwrap());
                         }
                     }
-                    Some("stats") => self.remote = v["remote"].clone(),
+                    Some("stats") => {
+                        self.remote = v["remote"].clone();
+                        self.events = v["events"].clone();
+                    }
                     Some("ball") => {
                         self.balls_ok += u64::from(v["status"] == "ok");
                         self.ball = v;
@@ -303,18 +308,34 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
         .put("rodtrack/default/cam/cam1/ball", fused_row)
         .wait()
         .unwrap();
-    let three = |s: &Seen| s.remote["malformed"] == 3;
+    // The fusion node's events (this scenario scores no goal: the test's session sends one as
+    // `fuse --zenoh-events` does), and one that is not an event.
+    let goal =
+        r#"{"frame":93,"timestamp_s":0.465000,"event":"goal","side":"b","goal":"a","score":[0,1]}"#;
+    session
+        .put("rodtrack/default/fused/events", goal)
+        .wait()
+        .unwrap();
+    session
+        .put("rodtrack/default/fused/events", r#"{"frame":94}"#)
+        .wait()
+        .unwrap();
+    let four =
+        |s: &Seen| s.remote["malformed"] == 4 && s.events["score"] == serde_json::json!([0, 1]);
     assert!(
-        read_until(&mut seen, Duration::from_secs(10), &three),
-        "malformed messages not counted: {}",
-        seen.remote
+        read_until(&mut seen, Duration::from_secs(10), &four),
+        "malformed messages and the event not shown: {} {}",
+        seen.remote,
+        seen.events
     );
+    assert_eq!(seen.events["last"][0]["event"], "goal", "{}", seen.events);
     let errors = seen.remote["first_errors"].to_string();
     assert!(
         errors.contains(&format!("{bad_preview}: bad message: preview of 6 bytes"))
             && errors.contains("rodtrack/default/fused/status: bad message: status JSON")
             && errors
-                .contains("cam/cam1/ball: bad message: ball rows that are not the camera node's"),
+                .contains("cam/cam1/ball: bad message: ball rows that are not the camera node's")
+            && errors.contains("rodtrack/default/fused/events: bad message: event:"),
         "{errors}"
     );
     session.close().wait().unwrap();
@@ -329,7 +350,7 @@ fn the_console_shows_the_networks_rows_statuses_and_previews() {
         )),
         "{log}"
     );
-    assert!(log.contains("3 malformed message(s) received"), "{log}");
+    assert!(log.contains("4 malformed message(s) received"), "{log}");
 }
 
 /// A zenoh session of the test's own, connected to `endpoint` (scouting off), once the peer

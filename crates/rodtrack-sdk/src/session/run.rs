@@ -139,11 +139,7 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                         .map_err(|e| e.to_string()),
                     Err(e) => Err(e.to_string()),
                 };
-                if let (Some(b), Some((row, sigma_mm))) = (ball_cam.as_ref(), ball_row) {
-                    // The rods' rows first: the events see a frame's rod angles with its ball.
-                    b.feed
-                        .push(row, sigma_mm, result.is_ok().then_some(&rows[..]));
-                }
+                let measured = result.is_ok();
                 match result {
                     Ok(()) => {
                         let d = start.elapsed();
@@ -164,6 +160,11 @@ pub(super) fn run_cameras<S: MeasurementSink + 'static>(
                     }
                 }
                 h.camera_rows(cam_index, meta, rows);
+                // After the rods' rows, here and on a camera node's link: the events see a
+                // frame's rod angles with its ball, in a session and at a fusion node alike.
+                if let (Some(b), Some((row, sigma_mm))) = (ball_cam.as_ref(), ball_row) {
+                    b.feed.push(row, sigma_mm, measured.then_some(&rows[..]));
+                }
             }),
         );
         if uses_frames {

@@ -9,12 +9,14 @@ use crate::ball_layout::decode_ball;
 use crate::net::{fused_key, RowPublisher};
 use crate::ros2::Ros2BallPublisher;
 use crate::ZenohError;
+use rodtrack_core::ball::events::{BallEvent, EventConfig};
 use rodtrack_core::ball::BallRow;
-use rodtrack_core::CameraId;
-use rodtrack_io::{BallSink, IoError};
-use rodtrack_sdk::{BallCounts, BallSets};
+use rodtrack_core::calib::CalibrationFile;
+use rodtrack_core::{CameraId, Measurement};
+use rodtrack_io::{BallSink, EventSink, IoError};
+use rodtrack_sdk::{BallCounts, BallSets, EventCounts};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{sync_channel, RecvTimeoutError};
+use std::sync::mpsc::{sync_channel, RecvTimeoutError, SyncSender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -23,12 +25,31 @@ use zenoh::Wait;
 /// Logs a line (the fusion's `log` callback).
 pub(super) type Log = Arc<dyn Fn(&str) + Send + Sync>;
 
+/// What the ball's thread takes, in the order the camera nodes' messages came.
+pub(super) enum Feed {
+    /// A camera's ball rows, with their positions' standard deviations (mm).
+    Ball(u32, Vec<(BallRow, f64)>),
+    /// A camera's measured rod rows of a frame (its `raw` message): the events' shot rod.
+    Rods(Vec<Measurement>),
+}
+
 /// The ball's subscriber and the thread that fuses its rows.
 pub(super) struct BallFusion {
     subscriber: zenoh::pubsub::Subscriber<()>,
     done: Arc<AtomicBool>,
-    thread: JoinHandle<Result<BallCounts, String>>,
+    thread: JoinHandle<Result<(BallCounts, Option<EventCounts>), String>>,
     refused: Arc<AtomicU64>,
+    /// The rods' rows for the events (`None` without events).
+    rods: Option<SyncSender<Feed>>,
+}
+
+/// The ball's events at the fusion node: the rules, and where they go besides
+/// `rodtrack/<table>/fused/events`.
+pub struct FusionEvents {
+    /// The rules (the table's geometry comes from the calibration).
+    pub config: EventConfig,
+    /// The caller's sink (a file), if any.
+    pub sink: Option<Box<dyn EventSink>>,
 }
 
 /// What the ball's part of a fusion run did.
@@ -39,6 +60,52 @@ pub struct BallReport {
     /// Ball messages refused (malformed, of a camera the calibration does not have, a row of
     /// another camera).
     pub refused: u64,
+    /// The events written, when they were detected.
+    pub events: Option<EventCounts>,
+}
+
+/// The events published on `.../fused/events` (one JSON object per event, as a line of
+/// `track --events-out`), then the caller's.
+struct EventOut {
+    publisher: Option<RowPublisher>,
+    inner: Option<Box<dyn EventSink>>,
+    /// One event's JSON, kept for its capacity.
+    text: String,
+}
+
+impl EventSink for EventOut {
+    fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
+        let mut first = Ok(());
+        if let Some(p) = &self.publisher {
+            for e in events {
+                self.text.clear();
+                e.push_json(&mut self.text);
+                if let Err(err) = p.publish_text(&self.text) {
+                    if first.is_ok() {
+                        first = Err(net_error(p.key(), err));
+                    }
+                }
+            }
+        }
+        if let Some(s) = self.inner.as_mut() {
+            let r = s.write(events);
+            if first.is_ok() {
+                first = r;
+            }
+        }
+        first
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        self.inner.as_mut().map_or(Ok(()), |s| s.flush())
+    }
+}
+
+/// A publication's failure as the sinks report it, naming the key expression.
+fn net_error(key: &str, e: ZenohError) -> IoError {
+    IoError::Net {
+        addr: key.to_string(),
+        source: std::io::Error::other(e.to_string()),
+    }
 }
 
 /// The fused ball rows published on `.../fused/ball`, a message per frame, and the fused row
@@ -62,10 +129,7 @@ impl BallSink for Out {
                 at += run.len();
                 if let Err(e) = p.publish_ball(run, s) {
                     if first.is_ok() {
-                        first = Err(IoError::Net {
-                            addr: p.key().to_string(),
-                            source: std::io::Error::other(e.to_string()),
-                        });
+                        first = Err(net_error(p.key(), e));
                     }
                 }
             }
@@ -74,10 +138,7 @@ impl BallSink for Out {
             for r in rows.iter().filter(|r| r.camera == CameraId::Fused) {
                 if let Err(e) = p.publish(r) {
                     if first.is_ok() {
-                        first = Err(IoError::Net {
-                            addr: p.key().to_string(),
-                            source: std::io::Error::other(e.to_string()),
-                        });
+                        first = Err(net_error(p.key(), e));
                     }
                 }
             }
@@ -98,18 +159,27 @@ impl BallSink for Out {
 impl BallFusion {
     /// Subscribes to the ball rows of `cameras` (name, index) of `table`; fuses them with a
     /// lag of `lag_frames`, into `sink` and, with `publish`, onto `.../fused/ball`; with
-    /// `ros2`, the fused rows for ROS 2 too.
+    /// `ros2`, the fused rows for ROS 2 too. With `events`, the frame sets' rows give the
+    /// ball's events (the table of `cal`), published on `.../fused/events` with `publish`;
+    /// their shot's rod needs the rods' rows ([`BallFusion::rods`]).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn start(
         session: &zenoh::Session,
         table: &str,
-        cameras: Vec<(String, u32)>,
+        cal: &CalibrationFile,
         lag_frames: u64,
         publish: Option<crate::net::WireFormat>,
         ros2: Option<Ros2BallPublisher>,
         sink: Option<Box<dyn BallSink>>,
+        events: Option<FusionEvents>,
         log: Log,
     ) -> Result<BallFusion, ZenohError> {
+        let cameras: Vec<(String, u32)> = cal
+            .cameras
+            .iter()
+            .filter(|c| c.ball.is_some())
+            .map(|c| (c.name.clone(), c.index))
+            .collect();
         let publisher = match publish {
             Some(format) => Some(RowPublisher::declare(
                 session,
@@ -128,7 +198,27 @@ impl BallFusion {
                 inner: sink,
             }),
         );
-        let (tx, rx) = sync_channel::<(u32, Vec<(BallRow, f64)>)>(1024);
+        let with_events = events.is_some();
+        if let Some(events) = events {
+            let publisher = match publish {
+                Some(_) => Some(RowPublisher::declare(
+                    session,
+                    fused_key(table, "events"),
+                    crate::net::WireFormat::Json,
+                )?),
+                None => None,
+            };
+            let out = EventOut {
+                publisher,
+                inner: events.sink,
+                text: String::with_capacity(256),
+            };
+            sets = sets
+                .with_events(cal, events.config, Box::new(out))
+                .map_err(|e| ZenohError::Invalid(e.to_string()))?;
+        }
+        let (tx, rx) = sync_channel::<Feed>(1024);
+        let rods = with_events.then(|| tx.clone());
         let refused = Arc::new(AtomicU64::new(0));
         let prefix = format!("rodtrack/{table}/cam/");
         let (sub_log, sub_refused) = (log.clone(), refused.clone());
@@ -164,7 +254,7 @@ impl BallFusion {
                         r.0.camera
                     ));
                 }
-                if tx.try_send((index, m.rows)).is_err() {
+                if tx.try_send(Feed::Ball(index, m.rows)).is_err() {
                     refuse("the ball fusion is behind: queue full, message dropped".into());
                 }
             })
@@ -175,24 +265,28 @@ impl BallFusion {
         let thread = std::thread::Builder::new()
             .name("rodtrack-fusion-ball".into())
             .spawn(move || {
+                let take = |sets: &mut BallSets, feed: Feed| match feed {
+                    Feed::Ball(camera, rows) => {
+                        for (row, sigma) in rows {
+                            sets.push(camera, row, sigma);
+                        }
+                    }
+                    Feed::Rods(rows) => sets.push_rods(&rows),
+                };
                 loop {
                     match rx.recv_timeout(Duration::from_millis(20)) {
-                        Ok((camera, rows)) => {
-                            for (row, sigma) in rows {
-                                sets.push(camera, row, sigma);
-                            }
-                        }
+                        Ok(feed) => take(&mut sets, feed),
                         Err(RecvTimeoutError::Timeout) if !stop.load(Ordering::SeqCst) => {}
                         Err(_) => break,
                     }
                 }
                 // What came before the stop, then the rest written.
-                while let Ok((camera, rows)) = rx.try_recv() {
-                    for (row, sigma) in rows {
-                        sets.push(camera, row, sigma);
-                    }
+                while let Ok(feed) = rx.try_recv() {
+                    take(&mut sets, feed);
                 }
-                sets.finish().map_err(|e| e.to_string())
+                let counts = sets.finish().map_err(|e| e.to_string())?;
+                let events = sets.finish_events().map_err(|e| e.to_string())?;
+                Ok((counts, events))
             })
             .map_err(|e| ZenohError::Invalid(format!("cannot start the ball thread: {e}")))?;
         Ok(BallFusion {
@@ -200,15 +294,23 @@ impl BallFusion {
             done,
             thread,
             refused,
+            rods,
         })
+    }
+
+    /// Where the fusion node's `raw` subscriber hands each camera's measured rod rows, when
+    /// the events are detected (their shot's rod), in the order the messages came.
+    pub(super) fn rods(&self) -> Option<SyncSender<Feed>> {
+        self.rods.clone()
     }
 
     /// Stops, writes what is pending, and reports (or the sink's first error).
     pub(super) fn finish(self) -> Result<BallReport, ZenohError> {
         let refused = self.refused.clone();
         drop(self.subscriber);
+        drop(self.rods);
         self.done.store(true, Ordering::SeqCst);
-        let counts = self
+        let (counts, events) = self
             .thread
             .join()
             .map_err(|_| ZenohError::Invalid("the ball thread panicked".into()))?
@@ -216,6 +318,7 @@ impl BallFusion {
         Ok(BallReport {
             counts,
             refused: refused.load(Ordering::Relaxed),
+            events,
         })
     }
 }
