@@ -5,7 +5,9 @@
 //! node's wire format. The keys are the recording's topics without their leading `/`. A
 //! recording's ball rows (`rodtrack.Ball`) go out as the nodes publish them: a camera's row of
 //! a frame on `rodtrack/<table>/cam/<camera>/ball`, and on `rodtrack/<table>/fused/ball` the
-//! frame's camera rows with the fused one. With [`ReplayOptions::ros2_domain`] the fused rows,
+//! frame's camera rows with the fused one. Its events (`rodtrack.Event`) go out on
+//! `rodtrack/<table>/fused/events`, each the JSON the fusion node publishes, in the order they
+//! were recorded (decided). With [`ReplayOptions::ros2_domain`] the fused rows,
 //! and the fused ball, also go out for ROS 2 over rmw_zenoh, as the fusion node publishes them
 //! ([`crate::ros2`]).
 
@@ -16,7 +18,8 @@ use crate::ZenohError;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::{CameraId, Measurement};
 use rodtrack_io::mcap::{
-    parse_ball_message, parse_rows_message, McapFile, BALL_SCHEMA_NAME, ROWS_SCHEMA_NAME,
+    parse_ball_message, parse_event_message, parse_rows_message, McapFile, BALL_SCHEMA_NAME,
+    EVENT_SCHEMA_NAME, ROWS_SCHEMA_NAME,
 };
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -54,6 +57,8 @@ pub struct ReplayReport {
     pub rows: u64,
     /// Ball rows in them (a fused message's camera rows counted again).
     pub ball_rows: u64,
+    /// Events in them.
+    pub events: u64,
     /// Messages of the recording's rows channels that could not be read (skipped).
     pub skipped: u64,
     /// From the first message to the last, wall time, s.
@@ -66,8 +71,8 @@ impl std::fmt::Display for ReplayReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "replayed {} messages ({} rows, {} ball rows) in {:.3} s (recorded over {:.3} s), {} skipped",
-            self.messages, self.rows, self.ball_rows, self.duration_s, self.recorded_s, self.skipped
+            "replayed {} messages ({} rows, {} ball rows, {} events) in {:.3} s (recorded over {:.3} s), {} skipped",
+            self.messages, self.rows, self.ball_rows, self.events, self.duration_s, self.recorded_s, self.skipped
         )
     }
 }
@@ -84,6 +89,8 @@ enum Payload {
     /// Ball rows with their spreads (a fused message: the frame's camera rows, then the fused
     /// one).
     Ball(Vec<BallRow>, Vec<f64>),
+    /// An event, as its JSON (checked).
+    Event(String),
 }
 
 /// A channel replayed: its key and what it carries.
@@ -92,6 +99,8 @@ enum Carries {
     Rows(Kind),
     /// Ball rows; `true` for the fused ones.
     Ball(bool),
+    /// The ball's events.
+    Events,
 }
 
 /// Publishes the rows of `file`; see the module documentation. Stops early when `stop` is
@@ -122,6 +131,7 @@ pub fn replay(
                 ball_diameter_mm = ball_diameter_mm.or(d.and_then(|d| d.parse::<f64>().ok()));
                 Carries::Ball(key.ends_with("/fused/ball"))
             }
+            Some(EVENT_SCHEMA_NAME) => Carries::Events,
             _ => continue,
         };
         channels.insert(c.id, (key, carries));
@@ -167,6 +177,7 @@ pub fn replay(
                     Payload::Ball(vec![b.row], vec![b.sigma_mm])
                 }
             }),
+            Carries::Events => parse_event_message(&m.data).map(|e| Payload::Event(e.json_line())),
         };
         match parsed {
             Ok(what) => {
@@ -261,6 +272,10 @@ pub fn replay(
                     }
                 }
                 report.ball_rows += rows.len() as u64;
+            }
+            Payload::Event(json) => {
+                publisher.publish_text(json)?;
+                report.events += 1;
             }
         }
         report.messages += 1;

@@ -239,13 +239,17 @@ fn run_node(args: Args) -> Result<()> {
                 args.calib.display()
             );
         }
-        let sink = match &args.events.events_out {
-            Some(path) => Some(Box::new(
+        let mut sink = rodtrack_io::EventMultiSink::new();
+        if let Some(path) = &args.events.events_out {
+            sink.push(Box::new(
                 rodtrack_io::EventJsonlSink::create(path)
                     .with_context(|| format!("creating the events output {}", path.display()))?,
-            ) as Box<dyn rodtrack_io::EventSink>),
-            None => None,
-        };
+            ));
+        }
+        // A recording holds the events when they are detected.
+        if let Some(r) = &recording {
+            sink.push(Box::new(r.event_sink()));
+        }
         if options.publish {
             eprintln!("the ball's events on rodtrack/{table}/fused/events");
         }
@@ -253,7 +257,7 @@ fn run_node(args: Args) -> Result<()> {
             config: args
                 .events
                 .config(true, "--events-out FILE or --zenoh-events")?,
-            sink,
+            sink: Some(Box::new(sink)),
         })
     } else {
         None

@@ -294,6 +294,10 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("creating the events output {}", path.display()))?;
         let mut sink = rodtrack_io::EventMultiSink::new();
         sink.push(Box::new(file));
+        // A recording holds the events when they are detected.
+        if let Some(r) = &recording {
+            sink.push(Box::new(r.event_sink()));
+        }
         // With --udp the events go to the stream too, as datagrams of their own (`RTEV`).
         if let Some(udp) = args.udp.as_deref() {
             sink.push(Box::new(

@@ -1,6 +1,7 @@
 //! `track --events-out` from the command line: scenario `goals` simulated (its calibration
 //! inputs and truth events), both cameras calibrated, the first second tracked from `sim://`
-//! sources; the events file against the truth's, the same events in the UDP stream, `score
+//! sources; the events file against the truth's, the same events in the UDP stream and in the
+//! MCAP recording, `score
 //! --events-truth`; bad arguments.
 #![allow(missing_docs, clippy::unwrap_used)]
 
@@ -42,6 +43,7 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
     let events = dir.join("events.jsonl");
     let rows = dir.join("rows.csv");
     let ball = dir.join("ball.jsonl");
+    let mcap = dir.join("run.mcap");
     // The UDP stream: rows' datagrams (`RTRK`) and the events' (`RTEV`), read as they come.
     let rx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     rx.set_read_timeout(Some(std::time::Duration::from_millis(200)))
@@ -88,6 +90,8 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
         ball.to_str().unwrap(),
         "--udp",
         &udp,
+        "--mcap",
+        mcap.to_str().unwrap(),
     ]);
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     let (udp_rows, udp_events, udp_balls) = receiver.join().unwrap();
@@ -144,6 +148,34 @@ fn track_writes_the_events_of_the_first_second_as_the_truth_has_them() {
                 "{field}: {got} against {want} ({v})"
             );
         }
+    }
+    // The same events in the recording, each message its line of the file, logged at its
+    // frame's capture time, on the fusion node's key.
+    let file = rodtrack_io::mcap::read_mcap(&mcap).unwrap();
+    let channel = file
+        .channels
+        .values()
+        .find(|c| file.schemas[&c.schema_id].name == rodtrack_io::mcap::EVENT_SCHEMA_NAME)
+        .expect("an events channel");
+    assert_eq!(channel.topic, "/rodtrack/default/fused/events");
+    let recorded: Vec<(String, u64)> = file
+        .messages
+        .iter()
+        .filter(|m| m.channel == channel.id)
+        .map(|m| (String::from_utf8(m.data.clone()).unwrap(), m.log_time_ns))
+        .collect();
+    let lines: Vec<String> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    assert_eq!(
+        recorded.iter().map(|r| r.0.clone()).collect::<Vec<_>>(),
+        lines
+    );
+    for (text, log_time_ns) in &recorded {
+        let e = rodtrack_io::mcap::parse_event_message(text.as_bytes()).unwrap();
+        assert_eq!(e.timestamp_ns.as_nanos(), *log_time_ns, "{text}");
     }
     let truth = rodtrack_io::read_events_jsonl(&rec.join("events_truth.jsonl")).unwrap();
     let found = rodtrack_io::read_events_jsonl(&events).unwrap();

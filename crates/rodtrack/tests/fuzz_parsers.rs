@@ -456,11 +456,11 @@ fn fuzz_mcap_recordings() {
     use rodtrack_core::ball::{BallRow, BallStatus};
     use rodtrack_core::CameraId;
     use rodtrack_io::mcap::{
-        parse_ball_message, parse_mcap, parse_rows_message, ChunkLimits, Compression, JointState,
-        McapRecorder, Profile, StampedXyz,
+        parse_ball_message, parse_event_message, parse_mcap, parse_rows_message, ChunkLimits,
+        Compression, JointState, McapRecorder, Profile, StampedXyz,
     };
-    use rodtrack_io::{BallSink, MeasurementSink};
-    // Small real recordings (several chunks, two cameras and the fusion, rods and ball) as the
+    use rodtrack_io::{BallSink, EventSink, MeasurementSink};
+    // Small real recordings (several chunks, two cameras and the fusion, rods, ball and events) as the
     // seeds: what `rodtrack replay` reads, uncompressed and in LZ4 chunks, and a ROS 2 bag of
     // joint states and the ball's stamped points in CDR (LZ4 chunks).
     let dir = std::env::temp_dir().join(format!("rodtrack-fuzz-mcap-{}", std::process::id()));
@@ -492,6 +492,7 @@ fn fuzz_mcap_recordings() {
         .unwrap();
         let mut sink = rec.sink();
         let mut ball = rec.ball_sink(35.0);
+        let mut events = rec.event_sink();
         for f in 0..6u64 {
             let t = rodtrack_core::Timestamp(5_000_000 * f);
             let row = |camera, status| BallRow {
@@ -521,6 +522,16 @@ fn fuzz_mcap_recordings() {
                 })
                 .collect();
             sink.write(&rows).unwrap();
+            events
+                .write(&[rodtrack_core::ball::events::BallEvent {
+                    frame: f,
+                    timestamp_ns: t,
+                    kind: rodtrack_core::ball::events::EventKind::BallStopped {
+                        x_mm: -120.5,
+                        y_mm: 33.25,
+                    },
+                }])
+                .unwrap();
         }
         sink.flush().unwrap();
         rec.finish().unwrap();
@@ -538,6 +549,7 @@ fn fuzz_mcap_recordings() {
                 let _ = JointState::from_cdr(&m.data);
                 let _ = parse_ball_message(&m.data);
                 let _ = StampedXyz::from_cdr(&m.data);
+                let _ = parse_event_message(&m.data);
             }
         }
     });

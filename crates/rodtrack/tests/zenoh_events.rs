@@ -2,7 +2,8 @@
 //! goal) through two camera nodes with `--zenoh-ball` and a fusion node with `--events-out` and
 //! `--zenoh-events`, each its own `rodtrack` process on loopback. The events file must be that
 //! of one in-process session on the same frames (`track --events-out`), and each event must go
-//! out on `rodtrack/<table>/fused/events` as its line of the file.
+//! out on `rodtrack/<table>/fused/events` as its line of the file, and again when the fusion
+//! node's recording (`--mcap`) is replayed.
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
@@ -69,6 +70,7 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
     let c = calib.display().to_string();
     let port = free_port();
     let events = t.join("events.jsonl");
+    let mcap = t.join("fuse.mcap");
     let mut fusion = Proc::start(
         &[
             "fuse",
@@ -83,6 +85,8 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
             "--events-out",
             &events.display().to_string(),
             "--zenoh-events",
+            "--mcap",
+            &mcap.display().to_string(),
             "--zenoh-listen",
             &format!("tcp/127.0.0.1:{port}"),
             // No fault here: a camera late by a few frames on a loaded machine is waited for.
@@ -173,6 +177,56 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
     // Each event on the network as its line of the file, in order.
     std::thread::sleep(Duration::from_millis(200));
     assert_eq!(*seen.lock().unwrap(), want, "events on fused/events");
+    session.close().wait().unwrap();
+
+    // The fusion node's recording, replayed: the events go out again on fused/events.
+    let port = free_port();
+    let mut config = zenoh::Config::default();
+    config
+        .insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
+        .unwrap();
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(config).wait().unwrap();
+    let replayed: Arc<Mutex<Vec<String>>> = Arc::default();
+    let r = replayed.clone();
+    session
+        .declare_subscriber("rodtrack/default/fused/events")
+        .callback(move |sample| {
+            let text = String::from_utf8(sample.payload().to_bytes().to_vec()).unwrap();
+            r.lock().unwrap().push(text);
+        })
+        .background()
+        .wait()
+        .unwrap();
+    let out = std::process::Command::new(zenoh_common::BIN)
+        .arg("replay")
+        .arg(&mcap)
+        .args([
+            "--publish",
+            "zenoh",
+            "--speed",
+            "4",
+            "--start-delay-s",
+            "1.5",
+        ])
+        .args(["--zenoh-connect", &format!("tcp/127.0.0.1:{port}")])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains(&format!(", {} events)", want.len())),
+        "{stdout}"
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(*replayed.lock().unwrap(), want, "replayed events");
+    session.close().wait().unwrap();
 }
 
 #[test]

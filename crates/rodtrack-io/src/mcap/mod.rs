@@ -15,6 +15,7 @@
 //!   complete chunks before the cut.
 //! - [`record`]: [`McapRecorder`], the channels and schemas of rodtrack's recordings.
 //! - [`mod@ball`]: the ball's rows in recordings ([`McapRecorder::ball_sink`]).
+//! - [`mod@events`]: the ball's events in recordings ([`McapRecorder::event_sink`]).
 //! - [`ros2`]: [`JointState`] in CDR, its `ros2msg` schema and QoS metadata.
 //!
 //! What a crash leaves: every chunk closed before it (a chunk is closed after at most
@@ -23,12 +24,14 @@
 //! those chunks; the open chunk's messages are lost.
 
 pub mod ball;
+pub mod events;
 pub mod read;
 pub mod record;
 pub mod ros2;
 pub mod write;
 
 pub use ball::{parse_ball_message, BallMessage, McapBallSink, BALL_SCHEMA, BALL_SCHEMA_NAME};
+pub use events::{parse_event_message, McapEventSink, EVENT_SCHEMA, EVENT_SCHEMA_NAME};
 pub use read::{
     parse_mcap, read_mcap, McapChannel, McapFile, McapMessage, McapSchema, MAX_CHUNK_BYTES,
 };

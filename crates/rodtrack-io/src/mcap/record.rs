@@ -10,6 +10,7 @@
 //! | `/rodtrack/<table>/cam/<camera>/joints`, `/rodtrack/<table>/fused/joints` | `rodtrack.JointState` | the same rows as joints: `rod<k>_slide` (m, m/s) and `rod<k>_turn` (rad, rad/s) |
 //! | `/rodtrack/<table>/cam/<camera>/image` | `foxglove.RawImage` | downscaled grey frames, when asked for |
 //! | `/rodtrack/<table>/cam/<camera>/ball`, `/rodtrack/<table>/fused/ball` | `rodtrack.Ball` | the ball's rows, one per frame ([`super::ball`], through [`McapRecorder::ball_sink`]) |
+//! | `/rodtrack/<table>/fused/events` | `rodtrack.Event` | the ball's events, one per message, as decided ([`super::events`], through [`McapRecorder::event_sink`]) |
 //!
 //! Every message's log time and publish time are the frame's capture timestamp, ns. Each
 //! channel's metadata names its `table` and `camera`.
@@ -20,10 +21,11 @@
 //! `/rodtrack/<table>/fused/joint_states` (names made ROS names by
 //! [`super::ros2::ros_name_token`]), and the ball as `geometry_msgs/msg/PointStamped` and
 //! `Vector3Stamped` on `.../ball` and `.../ball/velocity`, each channel with its
-//! `offered_qos_profiles`. The profile admits no other encoding, so the rows and frames are
-//! not in that file.
+//! `offered_qos_profiles`. The profile admits no other encoding, so the rows, frames and
+//! events are not in that file.
 
 use super::ball::{BALL_SCHEMA, BALL_SCHEMA_NAME};
+use super::events::{EVENT_SCHEMA, EVENT_SCHEMA_NAME};
 use super::ros2::{
     ros_name_token, JointState, JOINT_STATE_MSGDEF, JOINT_STATE_QOS, JOINT_STATE_SCHEMA_NAME,
     POINT_STAMPED_MSGDEF, POINT_STAMPED_SCHEMA_NAME, VECTOR3_STAMPED_MSGDEF,
@@ -164,6 +166,8 @@ pub(super) enum Topic {
     BallPoint(CameraId),
     /// The ball's velocity in a ROS 2 bag.
     BallVelocity(CameraId),
+    /// The ball's events ([`super::events`]).
+    Events,
 }
 
 struct Channel {
@@ -394,6 +398,7 @@ impl Inner {
             Topic::Ball(c) => format!("{}/ball", prefix(c)),
             Topic::BallPoint(c) => format!("{}/ball", ros_prefix(c)),
             Topic::BallVelocity(c) => format!("{}/ball/velocity", ros_prefix(c)),
+            Topic::Events => format!("{}/events", prefix(CameraId::Fused)),
         }
     }
 
@@ -406,6 +411,7 @@ impl Inner {
                 Topic::JointStates(_) => (JOINT_STATE_SCHEMA_NAME, JOINT_STATE_MSGDEF, "ros2msg"),
                 Topic::Image(_) => (IMAGE_SCHEMA_NAME, IMAGE_SCHEMA, "jsonschema"),
                 Topic::Ball(_) => (BALL_SCHEMA_NAME, BALL_SCHEMA, "jsonschema"),
+                Topic::Events => (EVENT_SCHEMA_NAME, EVENT_SCHEMA, "jsonschema"),
                 Topic::BallPoint(_) => (POINT_STAMPED_SCHEMA_NAME, POINT_STAMPED_MSGDEF, "ros2msg"),
                 Topic::BallVelocity(_) => (
                     VECTOR3_STAMPED_SCHEMA_NAME,
@@ -437,6 +443,7 @@ impl Inner {
                 | Topic::BallPoint(c)
                 | Topic::BallVelocity(c) => self.camera_name(c),
                 Topic::Image(c) => self.camera_name(CameraId::Camera(c)),
+                Topic::Events => self.camera_name(CameraId::Fused),
             };
             let mut metadata = vec![("table", table.as_str()), ("camera", camera.as_str())];
             let diameter = self.ball_diameter_mm.map(|d| d.to_string());
@@ -714,7 +721,13 @@ mod tests {
 
     #[test]
     fn schemas_are_json() {
-        for s in [ROWS_SCHEMA, JOINTS_SCHEMA, IMAGE_SCHEMA, BALL_SCHEMA] {
+        for s in [
+            ROWS_SCHEMA,
+            JOINTS_SCHEMA,
+            IMAGE_SCHEMA,
+            BALL_SCHEMA,
+            EVENT_SCHEMA,
+        ] {
             let v: serde_json::Value = serde_json::from_str(s).unwrap();
             assert_eq!(v["type"], "object");
         }
