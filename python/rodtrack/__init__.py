@@ -11,19 +11,22 @@ calibrate from calibration inputs; render the simulator's frames and truth.
     rows = tracker.process(frame, frame_id=17)      # frame: numpy (H, W) uint8 / uint16
     rows.position_mm, rows.angle_rad, rows.status    # numpy arrays, one entry per rod
 
-    with rodtrack.open(calib, inputs=["rec/cam0", "rec/cam1"]) as session:
+    with rodtrack.open(calib, inputs=["rec/cam0", "rec/cam1"], events=True) as session:
         for frame_set in session:
-            print(frame_set.fused.position_mm)
+            print(frame_set.fused.position_mm, frame_set.ball_fused.x_mm, frame_set.events)
 
 See ``docs/python.md`` in the repository for the whole API.
 """
 
 from ._rodtrack import (
+    BALL_COLUMNS,
+    BALL_STATUS_NAMES,
     COLUMNS,
     CSV_DECIMALS,
     FUSED,
     MODES,
     STATUS_NAMES,
+    BallRows,
     Calibration,
     CalibrationError,
     FrameSet,
@@ -41,11 +44,14 @@ from ._rodtrack import (
 )
 
 __all__ = [
+    "BALL_COLUMNS",
+    "BALL_STATUS_NAMES",
     "COLUMNS",
     "CSV_DECIMALS",
     "FUSED",
     "MODES",
     "STATUS_NAMES",
+    "BallRows",
     "Calibration",
     "CalibrationError",
     "FrameSet",

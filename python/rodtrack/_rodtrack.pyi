@@ -16,6 +16,10 @@ STATUS_NAMES: Tuple[str, ...]
 """Status names by code: ``rows.status[i]`` indexes this tuple (0 = ``ok``)."""
 FUSED: int
 """The camera code of fused rows (-1)."""
+BALL_COLUMNS: Tuple[str, ...]
+"""The ball's row columns, as ``rodtrack track --ball-out`` writes them (plus ``timestamp_ns``)."""
+BALL_STATUS_NAMES: Tuple[str, ...]
+"""Ball status names by code: ``ball.status[i]`` indexes this tuple (0 = ``ok``)."""
 MODES: Tuple[str, ...]
 """The algorithms: ``enhanced``, ``paper``."""
 CSV_DECIMALS: Dict[str, int]
@@ -75,6 +79,49 @@ class Rows:
     @property
     def turns_known(self) -> npt.NDArray[np.bool_]:
         """Whether ``angle_unwrapped_rad`` counts the whole turns for sure (false after a stretch in which the count could have slipped, until it is re-anchored)."""
+    def to_dict(self) -> Dict[str, np.ndarray]:
+        """Every column by name, as numpy arrays."""
+    def status_names(self) -> List[str]:
+        """The status of each row by name."""
+    def __len__(self) -> int:
+        """Number of rows."""
+
+class BallRows:
+    """The ball's rows as numpy arrays, one entry per row (the table frame, mm).
+
+    Each attribute access returns a new array.
+    """
+
+    @property
+    def frame(self) -> npt.NDArray[np.uint64]:
+        """The frame id."""
+    @property
+    def timestamp_s(self) -> npt.NDArray[np.float64]:
+        """Capture time, seconds."""
+    @property
+    def timestamp_ns(self) -> npt.NDArray[np.uint64]:
+        """Capture time, nanoseconds from the source's epoch."""
+    @property
+    def camera(self) -> npt.NDArray[np.int64]:
+        """The camera's index, or -1 (``FUSED``) for fused rows."""
+    @property
+    def x_mm(self) -> npt.NDArray[np.float64]:
+        """The ball's centre in the table frame, mm (x towards goal B)."""
+    @property
+    def y_mm(self) -> npt.NDArray[np.float64]:
+        """The ball's centre in the table frame, mm (y across the table)."""
+    @property
+    def vx_mm_s(self) -> npt.NDArray[np.float64]:
+        """Velocity, mm/s."""
+    @property
+    def vy_mm_s(self) -> npt.NDArray[np.float64]:
+        """Velocity, mm/s."""
+    @property
+    def quality(self) -> npt.NDArray[np.float64]:
+        """Fraction of the ball's outline measured, in [0, 1]."""
+    @property
+    def status(self) -> npt.NDArray[np.uint8]:
+        """An index into ``BALL_STATUS_NAMES`` (0 = ok)."""
     def to_dict(self) -> Dict[str, np.ndarray]:
         """Every column by name, as numpy arrays."""
     def status_names(self) -> List[str]:
@@ -152,6 +199,15 @@ class FrameSet:
         """The fused rows, one per rod (with one camera or no filter: camera 0's rows)."""
     def camera(self, index: int) -> Rows:
         """Camera ``index``'s rows."""
+    @property
+    def ball(self) -> BallRows:
+        """The ball's rows the set carries: this frame's (each camera's, then the fused one), after older frames' that came late."""
+    @property
+    def ball_fused(self) -> BallRows:
+        """This frame's fused ball row (with one camera, the camera's); empty without one."""
+    @property
+    def events(self) -> List[Dict[str, object]]:
+        """The ball's events decided since the previous set, each as a line of ``--events-out``."""
     def __len__(self) -> int:
         """Number of rows."""
 
@@ -178,6 +234,9 @@ class Session:
     @property
     def dropped_sets(self) -> int:
         """Frame sets dropped because the Python loop was behind (live sources only)."""
+    @property
+    def dropped_ball_rows(self) -> int:
+        """Ball rows dropped because no frame set took them in time."""
     @property
     def summary(self) -> Optional[str]:
         """The session's report once it has ended or been closed."""
@@ -217,8 +276,11 @@ def open(
     filter: bool = True,
     max_frames: Optional[int] = None,
     queue: int = 64,
+    ball: bool = False,
+    events: bool = False,
+    goal_width_mm: Optional[float] = None,
 ) -> Session:
-    """Opens one input per camera and starts tracking them in a background thread."""
+    """Opens one input per camera and starts tracking them (and the ball, its events) in a background thread."""
 
 def simulate(
     scenario: str = "exp3",

@@ -6,6 +6,7 @@
 //! attributes are numpy arrays (`rows.position_mm`, ...). A field added to the record is one
 //! line here (and one in the type stubs, `rodtrack/_rodtrack.pyi`, which a test checks).
 
+use rodtrack_core::ball::{BallRow, BallStatus};
 use rodtrack_core::{CameraId, Measurement, Status};
 
 /// The status names by code: `rows.status[i]` is an index into this list.
@@ -47,26 +48,33 @@ pub fn camera_code(camera: CameraId) -> i64 {
     }
 }
 
+/// A record's fields as columns: `$cols` (plain vectors), `$names` and, with the `python`
+/// feature, the Python class `$py` (named `$pyname`) whose attributes are numpy arrays, its
+/// `status` column's names in `$statuses`.
 macro_rules! columns {
-    ($( $(#[doc = $doc:literal])+ $name:ident : $ty:ty = |$m:ident| $get:expr ;)+) => {
-        /// Rows as columns, one vector per field of [`COLUMN_NAMES`], in row order.
+    (
+        $(#[$pydoc:meta])*
+        $cols:ident($rec:ty), $names:ident, $py:ident = $pyname:literal, $statuses:path;
+        $( $(#[doc = $doc:literal])+ $name:ident : $ty:ty = |$m:ident| $get:expr ;)+
+    ) => {
+        /// Rows as columns, one vector per field of the names' list, in row order.
         #[derive(Debug, Clone, Default, PartialEq)]
-        pub struct Columns {
+        pub struct $cols {
             $( $(#[doc = $doc])+ pub $name: Vec<$ty>, )+
         }
 
         /// The column names, in the order of the record (and of the CSV files' columns).
-        pub const COLUMN_NAMES: &[&str] = &[$(stringify!($name)),+];
+        pub const $names: &[&str] = &[$(stringify!($name)),+];
 
-        impl Columns {
+        impl $cols {
             /// Appends one record.
-            pub fn push(&mut self, m: &Measurement) {
+            pub fn push(&mut self, m: &$rec) {
                 $( { let $m = m; self.$name.push($get); } )+
             }
 
             /// The columns of `rows`.
-            pub fn of<'a>(rows: impl IntoIterator<Item = &'a Measurement>) -> Columns {
-                let mut c = Columns::default();
+            pub fn of<'a>(rows: impl IntoIterator<Item = &'a $rec>) -> $cols {
+                let mut c = $cols::default();
                 for m in rows {
                     c.push(m);
                 }
@@ -84,20 +92,17 @@ macro_rules! columns {
             }
         }
 
-        /// One tracked frame's (or frame set's) rows, one entry per row in each column: numpy
-        /// arrays named like the CSV columns. `camera` is the camera index or -1 (`FUSED`) for
-        /// fused rows; `status` a code, an index into `STATUS_NAMES`. Each attribute access
-        /// returns a new array (a copy of a few values).
+        $(#[$pydoc])*
         #[cfg(feature = "python")]
-        #[pyo3::pyclass(module = "rodtrack", frozen, name = "Rows")]
-        pub struct PyRows {
+        #[pyo3::pyclass(module = "rodtrack", frozen, name = $pyname)]
+        pub struct $py {
             /// The rows.
-            pub cols: Columns,
+            pub cols: $cols,
         }
 
         #[cfg(feature = "python")]
         #[pyo3::pymethods]
-        impl PyRows {
+        impl $py {
             $(
                 $(#[doc = $doc])+
                 #[getter]
@@ -106,12 +111,12 @@ macro_rules! columns {
                 }
             )+
 
-            /// The status of each row by name (``STATUS_NAMES[code]``).
+            /// The status of each row by name (its code's entry in the status names).
             fn status_names(&self) -> Vec<&'static str> {
                 self.cols
                     .status
                     .iter()
-                    .map(|c| STATUS_NAMES.get(usize::from(*c)).copied().unwrap_or("?"))
+                    .map(|c| $statuses.get(usize::from(*c)).copied().unwrap_or("?"))
                     .collect()
             }
 
@@ -121,7 +126,7 @@ macro_rules! columns {
             }
 
             fn __repr__(&self) -> String {
-                format!("Rows({} rows: {})", self.cols.len(), COLUMN_NAMES.join(", "))
+                format!("{}({} rows: {})", $pyname, self.cols.len(), $names.join(", "))
             }
 
             /// Every column by name, as numpy arrays.
@@ -143,6 +148,11 @@ fn first_len(lens: &[usize]) -> usize {
 }
 
 columns! {
+    /// One tracked frame's (or frame set's) rows, one entry per row in each column: numpy
+    /// arrays named like the CSV columns. `camera` is the camera index or -1 (`FUSED`) for
+    /// fused rows; `status` a code, an index into `STATUS_NAMES`. Each attribute access
+    /// returns a new array (a copy of a few values).
+    Columns(Measurement), COLUMN_NAMES, PyRows = "Rows", STATUS_NAMES;
     /// The camera's frame id.
     frame: u64 = |m| m.frame;
     /// Capture time, seconds (``timestamp_ns * 1e-9``, as the CSV prints it).
@@ -172,6 +182,47 @@ columns! {
     turns_known: bool = |m| m.turns_known;
 }
 
+/// The ball's status names by code: `ball.status[i]` is an index into this list.
+pub const BALL_STATUS_NAMES: [&str; 4] = ["ok", "predicted", "lost", "conflict"];
+
+/// The code of a ball row's status: its index in [`BALL_STATUS_NAMES`].
+pub fn ball_status_code(status: BallStatus) -> u8 {
+    match status {
+        BallStatus::Ok => 0,
+        BallStatus::Predicted => 1,
+        BallStatus::Lost => 2,
+        BallStatus::Conflict => 3,
+    }
+}
+
+columns! {
+    /// The ball's rows, one entry per row in each column: numpy arrays named like the columns
+    /// of `rodtrack track --ball-out` (the table frame, mm). `camera` is the camera index or
+    /// -1 (`FUSED`) for fused rows; `status` a code, an index into `BALL_STATUS_NAMES`.
+    BallColumns(BallRow), BALL_COLUMN_NAMES, PyBallRows = "BallRows", BALL_STATUS_NAMES;
+    /// The frame id.
+    frame: u64 = |b| b.frame;
+    /// Capture time, seconds.
+    timestamp_s: f64 = |b| b.timestamp_s();
+    /// Capture time, nanoseconds from the source's epoch.
+    timestamp_ns: u64 = |b| b.timestamp_ns.as_nanos();
+    /// The camera's index, or -1 (`FUSED`) for fused rows.
+    camera: i64 = |b| camera_code(b.camera);
+    /// The ball's centre in the table frame, mm (x towards goal B).
+    x_mm: f64 = |b| b.x_mm;
+    /// The ball's centre in the table frame, mm (y across the table).
+    y_mm: f64 = |b| b.y_mm;
+    /// Velocity, mm/s.
+    vx_mm_s: f64 = |b| b.vx_mm_s;
+    /// Velocity, mm/s.
+    vy_mm_s: f64 = |b| b.vy_mm_s;
+    /// Fraction of the ball's outline measured, in [0, 1].
+    quality: f64 = |b| b.quality;
+    /// An index into `BALL_STATUS_NAMES` (0 = ok: measured in this frame; predicted: from the
+    /// track, not seen; lost; conflict: the cameras disagree).
+    status: u8 = |b| ball_status_code(b.status);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,6 +233,24 @@ mod tests {
             let s = Status::from_name(name).expect("a status name of the core");
             assert_eq!(status_code(s) as usize, i, "{name}");
         }
+    }
+
+    #[test]
+    fn the_ball_columns_follow_the_ball_csv() {
+        for (i, name) in BALL_STATUS_NAMES.iter().enumerate() {
+            let s = BallStatus::from_name(name).expect("a ball status of the core");
+            assert_eq!(ball_status_code(s) as usize, i, "{name}");
+        }
+        // frame,timestamp_s,camera,x_mm,y_mm,vx_mm_s,vy_mm_s,quality,status
+        for c in BallRow::CSV_HEADER.split(',') {
+            assert!(BALL_COLUMN_NAMES.contains(&c), "ball column {c} missing");
+        }
+        let mut b = BallRow::lost(9, rodtrack_core::Timestamp(45_000_000), CameraId::Camera(1));
+        b.x_mm = 12.5;
+        let c = BallColumns::of([&b]);
+        assert_eq!((c.frame[0], c.camera[0], c.x_mm[0]), (9, 1, 12.5));
+        assert_eq!(c.timestamp_s, [45_000_000.0 * 1e-9]);
+        assert_eq!(c.status, [2]);
     }
 
     #[test]

@@ -7,7 +7,10 @@ mod session;
 mod simulate;
 mod tracker;
 
-use crate::columns::{PyRows, COLUMN_NAMES, FUSED_CAMERA, STATUS_NAMES};
+use crate::columns::{
+    PyBallRows, PyRows, BALL_COLUMN_NAMES, BALL_STATUS_NAMES, COLUMN_NAMES, FUSED_CAMERA,
+    STATUS_NAMES,
+};
 use pyo3::prelude::*;
 use rodtrack_io::sink::decimals;
 
@@ -20,6 +23,14 @@ fn rodtrack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("COLUMNS", pyo3::types::PyTuple::new(py, COLUMN_NAMES)?)?;
     m.add("STATUS_NAMES", pyo3::types::PyTuple::new(py, STATUS_NAMES)?)?;
     m.add("FUSED", FUSED_CAMERA)?;
+    m.add(
+        "BALL_COLUMNS",
+        pyo3::types::PyTuple::new(py, BALL_COLUMN_NAMES)?,
+    )?;
+    m.add(
+        "BALL_STATUS_NAMES",
+        pyo3::types::PyTuple::new(py, BALL_STATUS_NAMES)?,
+    )?;
     m.add(
         "MODES",
         pyo3::types::PyTuple::new(py, rodtrack_sdk::MODE_NAMES)?,
@@ -39,6 +50,7 @@ fn rodtrack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CSV_DECIMALS", d)?;
     errors::register(m)?;
     m.add_class::<PyRows>()?;
+    m.add_class::<PyBallRows>()?;
     m.add_class::<calibration::PyCalibration>()?;
     m.add_class::<tracker::PyTracker>()?;
     m.add_class::<session::PySession>()?;

@@ -3,8 +3,8 @@
 
 use super::calibration::PyCalibration;
 use super::errors::{to_py, SessionClosed};
-use crate::columns::{Columns, PyRows};
-use crate::stream::{FrameSet, Next, Stream};
+use crate::columns::{BallColumns, Columns, PyBallRows, PyRows};
+use crate::stream::{BallShare, FrameSet, Next, Stream};
 use pyo3::prelude::*;
 use rodtrack_core::CameraId;
 use rodtrack_sdk::{RunReport, Session, SessionOptions};
@@ -70,15 +70,59 @@ impl PyFrameSet {
         }
     }
 
+    /// The ball's rows the set carries (``open(..., ball=True)``): this frame's, each
+    /// camera's then the fused one, after the rows of older frames that came late (a camera
+    /// behind); empty without the ball.
+    #[getter]
+    fn ball(&self) -> PyBallRows {
+        PyBallRows {
+            cols: BallColumns::of(&self.set.ball),
+        }
+    }
+
+    /// The ball's state of the table for this frame: its fused row (with one camera, the
+    /// camera's row); empty without the ball or when the set carries no row of its frame.
+    #[getter]
+    fn ball_fused(&self) -> PyBallRows {
+        let want = if self.cameras > 1 {
+            CameraId::Fused
+        } else {
+            CameraId::Camera(0)
+        };
+        PyBallRows {
+            cols: BallColumns::of(
+                self.set
+                    .ball
+                    .iter()
+                    .filter(|b| b.frame == self.set.frame && b.camera == want),
+            ),
+        }
+    }
+
+    /// The ball's events decided since the previous set (``open(..., events=True)``), each
+    /// a dict as a line of ``rodtrack track --events-out``: ``frame``, ``timestamp_s``,
+    /// ``event`` (``goal``, ``shot``, ``ball_out``, ``ball_stopped``) and its fields.
+    #[getter]
+    fn events<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let json = py.import("json")?;
+        self.set
+            .events
+            .iter()
+            .map(|e| json.call_method1("loads", (e.json_line(),)))
+            .collect()
+    }
+
     fn __len__(&self) -> usize {
         self.set.rows.len()
     }
 
     fn __repr__(&self) -> String {
         format!(
-            "FrameSet(frame={}, rows={})",
+            "FrameSet(frame={}, rows={}, ball rows={}, events={})",
             self.set.frame,
-            self.set.rows.len()
+            self.set.rows.len(),
+            self.set.ball.len(),
+            self.set.events.len()
         )
     }
 }
@@ -196,6 +240,17 @@ impl PySession {
         self.report.as_ref().map(|r| r.summary().trim().to_string())
     }
 
+    /// Ball rows dropped because no frame set took them in time (the session's frame sets
+    /// stopped coming while its ball rows did).
+    #[getter]
+    fn dropped_ball_rows(&self) -> u64 {
+        self.stream
+            .lock()
+            .ok()
+            .and_then(|s| s.as_ref().map(|s| s.dropped_ball_rows()))
+            .unwrap_or(0)
+    }
+
     /// Number of cameras.
     #[getter]
     fn cameras(&self) -> usize {
@@ -210,9 +265,14 @@ impl PySession {
 /// ``mode``: the algorithm; ``filter``: the temporal filter and the fusion (else each
 /// camera's raw rows); ``max_frames``: stop after this many frames per camera; ``queue``: the
 /// frame sets held for a Python loop that is behind (live sources drop sets beyond it and
-/// count them in ``dropped_sets``; recordings wait).
+/// count them in ``dropped_sets``; recordings wait). ``ball``: track the ball too (cameras
+/// whose calibration has a ball), its rows in each set's ``ball``; ``events``: detect its
+/// events too (goals with the score, shots, ball out, ball stopped; implies ``ball``; needs
+/// the calibration's table frame), in each set's ``events``, with the goal mouth
+/// ``goal_width_mm`` wide (the reference table's 205 mm by default).
 #[pyfunction]
-#[pyo3(signature = (calibration, inputs, mode = "enhanced", filter = true, max_frames = None, queue = 64))]
+#[pyo3(signature = (calibration, inputs, mode = "enhanced", filter = true, max_frames = None, queue = 64, ball = false, events = false, goal_width_mm = None))]
+#[allow(clippy::too_many_arguments)]
 pub fn open(
     py: Python<'_>,
     calibration: &PyCalibration,
@@ -221,6 +281,9 @@ pub fn open(
     filter: bool,
     max_frames: Option<u64>,
     queue: usize,
+    ball: bool,
+    events: bool,
+    goal_width_mm: Option<f64>,
 ) -> PyResult<PySession> {
     let options = SessionOptions {
         mode: rodtrack_sdk::mode_from_name(mode).map_err(to_py)?,
@@ -228,9 +291,28 @@ pub fn open(
         max_frames,
         ..SessionOptions::default()
     };
+    if goal_width_mm.is_some() && !events {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "goal_width_mm sets the events' rules: pass events=True",
+        ));
+    }
+    let mut rules = rodtrack_core::ball::events::EventConfig::default();
+    if let Some(w) = goal_width_mm {
+        rules.goal_width_mm = w;
+    }
     let cal = &calibration.file;
+    let share = (ball || events).then(BallShare::default);
     let stream = py
-        .detach(|| Session::open(cal, &inputs, options).and_then(|s| Stream::start(s, queue)))
+        .detach(|| {
+            let mut s = Session::open(cal, &inputs, options)?;
+            if let Some(share) = &share {
+                s = s.with_ball(cal, Box::new(share.clone()))?;
+            }
+            if let (true, Some(share)) = (events, &share) {
+                s = s.with_events(cal, rules, Box::new(share.clone()))?;
+            }
+            Stream::start(s, queue, share)
+        })
         .map_err(to_py)?;
     Ok(PySession {
         stream: Mutex::new(Some(stream)),

@@ -57,7 +57,8 @@ impl PySimulation {
     }
 
     /// Every camera calibrated as an operator would (simulated clicks with about 1 px of
-    /// error, the rendered reference frame): use it with ``Tracker`` or ``rodtrack.open`` on
+    /// error, the rendered reference frame; in a scenario with a ball, its colour from a
+    /// frame of its own and the table frame): use it with ``Tracker`` or ``rodtrack.open`` on
     /// these frames or on ``sim://`` inputs of the same scenario and seed.
     #[getter]
     fn calibration(&self) -> PyCalibration {
@@ -88,9 +89,16 @@ fn render(
     let mut sim = rodtrack_sim::build_simulation(scenario, frames, seed, false, setup)?;
     let ncam = sim.cameras().len();
     let n = sim.frame_count();
+    // With a ball in the scenario, its colour is calibrated too (from its own frame), so that
+    // `open(..., ball=True)` tracks it.
+    let with_ball = sim.ball_truth(0).is_some();
     let mut cams = Vec::new();
     for c in 0..ncam {
-        cams.push(rodtrack_sim::calibrate_sim_camera(&mut sim, c, seed)?.calibration);
+        cams.push(if with_ball {
+            sim.calibrated_camera_with_ball(c, seed)?
+        } else {
+            rodtrack_sim::calibrate_sim_camera(&mut sim, c, seed)?.calibration
+        });
     }
     let calibration = rodtrack_sdk::calibration_file(cams)?;
     let frame_bytes = sim.frame_bytes(0)?;
