@@ -8,14 +8,16 @@
 use rodtrack_io::mcap::StampedXyz;
 use rodtrack_zenoh::ball_layout::decode_ball;
 use rodtrack_zenoh::ros2::{Ros2Names, ATTACHMENT_LEN, POINT_STAMPED, VECTOR3_STAMPED};
-use rodtrack_zenoh::zenoh::{self, Wait};
+use rodtrack_zenoh::zenoh::Wait;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 mod zenoh_common;
-use zenoh_common::{calibration, dir, free_port, run_ok, unix_ms, Proc};
+use zenoh_common::{
+    calibration, camera_nodes, dir, free_port, run_ok, test_session, unix_ms, Proc,
+};
 
 /// Frames prerendered by each node.
 const PRERENDER: u32 = 40;
@@ -75,14 +77,7 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
         t.join("fuse.err"),
     );
     // A subscriber of the test's own on the fused ball key: one message per frame.
-    let mut config = zenoh::Config::default();
-    config
-        .insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
-        .unwrap();
-    config
-        .insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(config).wait().unwrap();
+    let session = test_session("connect", port);
     let seen: Arc<Mutex<Vec<(u64, usize)>>> = Arc::default();
     let s = seen.clone();
     session
@@ -121,30 +116,14 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
             .unwrap();
     }
     let t0 = unix_ms() + START_MS;
-    let mut nodes: Vec<Proc> = (0..2u32)
-        .map(|cam| {
-            Proc::start(
-                &[
-                    "track",
-                    "--calib",
-                    &c,
-                    "--camera",
-                    &format!("cam{cam}"),
-                    "--input",
-                    &sim(cam, Some(t0)),
-                    "--publish",
-                    "zenoh",
-                    "--zenoh-ball",
-                    "--zenoh-connect",
-                    &format!("tcp/127.0.0.1:{port}"),
-                    "--max-frames",
-                    &FRAMES.to_string(),
-                ]
-                .map(String::from),
-                t.join(format!("cam{cam}.err")),
-            )
-        })
-        .collect();
+    let frames = FRAMES.to_string();
+    let mut nodes = camera_nodes(
+        &t,
+        &c,
+        port,
+        |cam| sim(cam, Some(t0)),
+        &["--zenoh-ball", "--max-frames", &frames],
+    );
     for n in &mut nodes {
         n.wait(Duration::from_millis(START_MS + 20_000));
     }

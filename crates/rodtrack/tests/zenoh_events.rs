@@ -7,13 +7,14 @@
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
-use rodtrack_zenoh::zenoh::{self, Wait};
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use rodtrack_zenoh::zenoh::Wait;
+use std::path::Path;
 use std::time::Duration;
 
 mod zenoh_common;
-use zenoh_common::{dir, free_port, run_ok, unix_ms, Proc};
+use zenoh_common::{
+    calibration_of, camera_nodes, collect_text, dir, free_port, run_ok, test_session, unix_ms, Proc,
+};
 
 /// The scenario's frames (its goal is at frame 93 of seed 3).
 const FRAMES: u32 = 200;
@@ -28,33 +29,6 @@ fn sim(cam: u32, t0: Option<u64>) -> String {
     }
 }
 
-/// The `goals` table (seed 3) and its two-camera calibration, with the ball and table frame.
-fn goals_calibration(t: &Path) -> PathBuf {
-    let rec = t.join("rec").display().to_string();
-    run_ok(&[
-        "simulate",
-        "--scenario",
-        "goals",
-        "--seed",
-        "3",
-        "--every",
-        "100000",
-        "--out",
-        &rec,
-    ]);
-    let calib = t.join("c.toml");
-    run_ok(&[
-        "calibrate",
-        "--inputs",
-        &format!("{rec}/cam0.json"),
-        "--inputs",
-        &format!("{rec}/cam1.json"),
-        "--out",
-        &calib.display().to_string(),
-    ]);
-    calib
-}
-
 fn read_lines(path: &Path) -> Vec<String> {
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -66,7 +40,8 @@ fn read_lines(path: &Path) -> Vec<String> {
 #[test]
 fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
     let t = dir("zenoh_events");
-    let calib = goals_calibration(&t);
+    // The `goals` table (seed 3), only frame 0's images (the calibration's).
+    let calib = calibration_of(&t, "goals", &["--seed", "3", "--every", "100000"]);
     let c = calib.display().to_string();
     let port = free_port();
     let events = t.join("events.jsonl");
@@ -97,48 +72,10 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
         t.join("fuse.err"),
     );
     // A control program's subscriber on the events' key.
-    let mut config = zenoh::Config::default();
-    config
-        .insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
-        .unwrap();
-    config
-        .insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(config).wait().unwrap();
-    let seen: Arc<Mutex<Vec<String>>> = Arc::default();
-    let s = seen.clone();
-    session
-        .declare_subscriber("rodtrack/default/fused/events")
-        .callback(move |sample| {
-            let text = String::from_utf8(sample.payload().to_bytes().to_vec()).unwrap();
-            s.lock().unwrap().push(text);
-        })
-        .background()
-        .wait()
-        .unwrap();
+    let session = test_session("connect", port);
+    let seen = collect_text(&session, "rodtrack/default/fused/events");
     let t0 = unix_ms() + START_MS;
-    let mut nodes: Vec<Proc> = (0..2u32)
-        .map(|cam| {
-            Proc::start(
-                &[
-                    "track",
-                    "--calib",
-                    &c,
-                    "--camera",
-                    &format!("cam{cam}"),
-                    "--input",
-                    &sim(cam, Some(t0)),
-                    "--publish",
-                    "zenoh",
-                    "--zenoh-ball",
-                    "--zenoh-connect",
-                    &format!("tcp/127.0.0.1:{port}"),
-                ]
-                .map(String::from),
-                t.join(format!("cam{cam}.err")),
-            )
-        })
-        .collect();
+    let mut nodes = camera_nodes(&t, &c, port, |cam| sim(cam, Some(t0)), &["--zenoh-ball"]);
     for n in &mut nodes {
         n.wait(Duration::from_millis(START_MS + 20_000));
     }
@@ -181,25 +118,8 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
 
     // The fusion node's recording, replayed: the events go out again on fused/events.
     let port = free_port();
-    let mut config = zenoh::Config::default();
-    config
-        .insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
-        .unwrap();
-    config
-        .insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(config).wait().unwrap();
-    let replayed: Arc<Mutex<Vec<String>>> = Arc::default();
-    let r = replayed.clone();
-    session
-        .declare_subscriber("rodtrack/default/fused/events")
-        .callback(move |sample| {
-            let text = String::from_utf8(sample.payload().to_bytes().to_vec()).unwrap();
-            r.lock().unwrap().push(text);
-        })
-        .background()
-        .wait()
-        .unwrap();
+    let session = test_session("listen", port);
+    let replayed = collect_text(&session, "rodtrack/default/fused/events");
     let out = std::process::Command::new(zenoh_common::BIN)
         .arg("replay")
         .arg(&mcap)

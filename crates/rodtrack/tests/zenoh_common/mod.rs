@@ -26,16 +26,16 @@ pub fn run_ok(args: &[&str]) {
 
 /// A simulated table (exp3) and its two-camera calibration.
 pub fn calibration(t: &Path) -> PathBuf {
+    calibration_of(t, "exp3", &["--frames", "20"])
+}
+
+/// A simulated table (`scenario`, with `simulate`'s options `extra`) and its two-camera
+/// calibration.
+pub fn calibration_of(t: &Path, scenario: &str, extra: &[&str]) -> PathBuf {
     let rec = t.join("rec").display().to_string();
-    run_ok(&[
-        "simulate",
-        "--scenario",
-        "exp3",
-        "--frames",
-        "20",
-        "--out",
-        &rec,
-    ]);
+    let mut args = vec!["simulate", "--scenario", scenario, "--out", &rec];
+    args.extend_from_slice(extra);
+    run_ok(&args);
     let calib = t.join("c.toml");
     run_ok(&[
         "calibrate",
@@ -47,6 +47,75 @@ pub fn calibration(t: &Path) -> PathBuf {
         &calib.display().to_string(),
     ]);
     calib
+}
+
+/// Camera nodes of cameras 0 and 1 (`--camera cam<k>`, input `input(k)`) publishing on zenoh
+/// and connected to `port`, with the options `extra`; stderr in `t/cam<k>.err`.
+pub fn camera_nodes(
+    t: &Path,
+    calib: &str,
+    port: u16,
+    input: impl Fn(u32) -> String,
+    extra: &[&str],
+) -> Vec<Proc> {
+    (0..2u32)
+        .map(|cam| {
+            let mut args: Vec<String> = [
+                "track",
+                "--calib",
+                calib,
+                "--camera",
+                &format!("cam{cam}"),
+                "--input",
+                &input(cam),
+                "--publish",
+                "zenoh",
+                "--zenoh-connect",
+                &format!("tcp/127.0.0.1:{port}"),
+            ]
+            .map(String::from)
+            .to_vec();
+            args.extend(extra.iter().map(|s| s.to_string()));
+            Proc::start(&args, t.join(format!("cam{cam}.err")))
+        })
+        .collect()
+}
+
+/// A zenoh session of the test's own on `tcp/127.0.0.1:<port>`, multicast scouting off:
+/// `mode` `connect` or `listen`.
+pub fn test_session(mode: &str, port: u16) -> rodtrack_zenoh::zenoh::Session {
+    use rodtrack_zenoh::zenoh::{self, Wait};
+    let mut config = zenoh::Config::default();
+    config
+        .insert_json5(
+            &format!("{mode}/endpoints"),
+            &format!("[\"tcp/127.0.0.1:{port}\"]"),
+        )
+        .unwrap();
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    zenoh::open(config).wait().unwrap()
+}
+
+/// The messages on `key` as text, as they come.
+pub fn collect_text(
+    session: &rodtrack_zenoh::zenoh::Session,
+    key: &str,
+) -> std::sync::Arc<std::sync::Mutex<Vec<String>>> {
+    use rodtrack_zenoh::zenoh::Wait;
+    let seen: std::sync::Arc<std::sync::Mutex<Vec<String>>> = Default::default();
+    let s = seen.clone();
+    session
+        .declare_subscriber(key)
+        .callback(move |sample| {
+            let text = String::from_utf8(sample.payload().to_bytes().to_vec()).unwrap();
+            s.lock().unwrap().push(text);
+        })
+        .background()
+        .wait()
+        .unwrap();
+    seen
 }
 
 pub fn free_port() -> u16 {
