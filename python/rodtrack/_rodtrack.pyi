@@ -265,6 +265,12 @@ class Simulation:
     @property
     def calibration(self) -> Calibration:
         """Every camera calibrated as an operator would."""
+    @property
+    def ball_truth(self) -> Optional[Dict[str, np.ndarray]]:
+        """The ball's truth per frame (``frame``, ``timestamp_s``, ``x_mm``, ``y_mm``, ``vx_mm_s``, ``vy_mm_s``, ``visible`` per camera), or ``None`` without a ball."""
+    @property
+    def events_truth(self) -> List[Dict[str, object]]:
+        """The scenario's scripted events, each as a line of ``--events-out``."""
 
 def calibrate(inputs: Sequence[_Path]) -> Calibration:
     """Calibrates camera ``i`` from calibration-inputs JSON file ``inputs[i]``."""

@@ -4,6 +4,7 @@ frames (at the files' decimals)."""
 
 import csv
 import json
+import math
 
 import pytest
 
@@ -90,3 +91,32 @@ def test_the_ball_is_asked_for(goals):
         rodtrack.open(goals["cal"], inputs=goals["inputs"], goal_width_mm=180.0)
     with pytest.raises(rodtrack.RodtrackError, match="goal"):
         rodtrack.open(goals["cal"], inputs=goals["inputs"], events=True, goal_width_mm=-1.0)
+
+
+def test_the_ball_is_where_the_simulators_truth_has_it():
+    """The `ball` scenario (rolling at up to 2 m/s), 120 frames: every fused row `ok` within
+    3 mm of the truth (the issue's maximum for such a ball), and the ball found on at least 99 %
+    of the frames where a camera sees at least half of it."""
+    frames = 120
+    sim = rodtrack.simulate("ball", frames=frames, seed=3)
+    truth = sim.ball_truth
+    assert truth is not None and len(truth["x_mm"]) == frames
+    assert truth["visible"].shape == (frames, 2)
+    assert sim.events_truth == [] or all("event" in e for e in sim.events_truth)
+    inputs = [f"sim://ball?camera={c}&seed=3&frames={frames}" for c in range(2)]
+    errors, found, visible = [], 0, 0
+    with rodtrack.open(sim.calibration, inputs=inputs, ball=True) as session:
+        for s in session:
+            f = int(s.frame)
+            b = s.ball_fused
+            ok = len(b) == 1 and b.status_names()[0] == "ok"
+            if truth["visible"][f].max() >= 0.5:
+                visible += 1
+                found += ok
+            if ok:
+                errors.append(math.hypot(b.x_mm[0] - truth["x_mm"][f], b.y_mm[0] - truth["y_mm"][f]))
+    assert visible > frames // 2
+    assert found >= 0.99 * visible, f"found on {found} of {visible} frames"
+    worst = max(errors)
+    print(f"\nball: {len(errors)} fused rows ok, error median {sorted(errors)[len(errors) // 2]:.2f} mm, max {worst:.2f} mm")
+    assert worst <= 3.0, worst

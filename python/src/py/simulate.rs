@@ -17,6 +17,8 @@ pub struct PySimulation {
     frame_ids: Vec<u64>,
     timestamps_ns: Vec<u64>,
     calibration: PyCalibration,
+    ball: Option<Vec<rodtrack_sim::ball::BallTruthRow>>,
+    events: Vec<rodtrack_core::ball::events::BallEvent>,
 }
 
 #[pymethods]
@@ -56,6 +58,52 @@ impl PySimulation {
         PyArray1::from_slice(py, &self.timestamps_ns)
     }
 
+    /// The ball's truth, one entry per frame, or ``None`` in a scenario without a ball: a dict
+    /// of numpy arrays ``frame``, ``timestamp_s``, ``x_mm``, ``y_mm`` (its centre at
+    /// mid-exposure, the table frame), ``vx_mm_s``, ``vy_mm_s`` and ``visible``, shape
+    /// ``(frames, cameras)``: the fraction of the ball each camera sees.
+    #[getter]
+    fn ball_truth<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<Bound<'py, pyo3::types::PyDict>>> {
+        let Some(rows) = &self.ball else {
+            return Ok(None);
+        };
+        let d = pyo3::types::PyDict::new(py);
+        let col = |f: fn(&rodtrack_sim::ball::BallTruthRow) -> f64| -> Vec<f64> {
+            rows.iter().map(f).collect()
+        };
+        let frames: Vec<u64> = rows.iter().map(|r| r.frame).collect();
+        d.set_item("frame", PyArray1::from_vec(py, frames))?;
+        d.set_item(
+            "timestamp_s",
+            PyArray1::from_vec(py, col(|r| r.timestamp_ns.as_secs_f64())),
+        )?;
+        d.set_item("x_mm", PyArray1::from_vec(py, col(|r| r.x_mm)))?;
+        d.set_item("y_mm", PyArray1::from_vec(py, col(|r| r.y_mm)))?;
+        d.set_item("vx_mm_s", PyArray1::from_vec(py, col(|r| r.vx_mm_s)))?;
+        d.set_item("vy_mm_s", PyArray1::from_vec(py, col(|r| r.vy_mm_s)))?;
+        let cameras = rows.first().map_or(0, |r| r.visible.len());
+        let visible: Vec<f64> = rows.iter().flat_map(|r| r.visible.clone()).collect();
+        d.set_item(
+            "visible",
+            PyArray1::from_vec(py, visible).reshape([rows.len(), cameras])?,
+        )?;
+        Ok(Some(d))
+    }
+
+    /// The scenario's scripted events over its whole timeline (goals, shots, ...), each a dict
+    /// as a line of ``rodtrack track --events-out``; empty without a ball.
+    #[getter]
+    fn events_truth<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let json = py.import("json")?;
+        self.events
+            .iter()
+            .map(|e| json.call_method1("loads", (e.json_line(),)))
+            .collect()
+    }
+
     /// Every camera calibrated as an operator would (simulated clicks with about 1 px of
     /// error, the rendered reference frame; in a scenario with a ball, its colour from a
     /// frame of its own and the table frame): use it with ``Tracker`` or ``rodtrack.open`` on
@@ -78,6 +126,8 @@ struct Rendered {
     frame_ids: Vec<u64>,
     timestamps_ns: Vec<u64>,
     calibration: rodtrack_core::calib::CalibrationFile,
+    ball: Option<Vec<rodtrack_sim::ball::BallTruthRow>>,
+    events: Vec<rodtrack_core::ball::events::BallEvent>,
 }
 
 fn render(
@@ -134,8 +184,12 @@ fn render(
             }
         }
     }
+    let ball = with_ball.then(|| (0..n).filter_map(|f| sim.ball_truth(f)).collect());
+    let events = sim.events_truth();
     Ok(Rendered {
         bytes,
+        ball,
+        events,
         cameras: ncam,
         frames: n,
         width,
@@ -176,5 +230,7 @@ pub fn simulate(
         calibration: PyCalibration {
             file: r.calibration,
         },
+        ball: r.ball,
+        events: r.events,
     })
 }
