@@ -235,6 +235,9 @@ class Session:
     def dropped_sets(self) -> int:
         """Frame sets dropped because the Python loop was behind (live sources only)."""
     @property
+    def final_events(self) -> List[Dict[str, object]]:
+        """The events decided after the last frame set, once the session has ended or been closed."""
+    @property
     def dropped_ball_rows(self) -> int:
         """Ball rows dropped because no frame set took them in time."""
     @property

@@ -74,6 +74,22 @@ impl BallShare {
         }
         set.events.append(&mut h.events);
     }
+
+    /// A set that was not delivered gives its events back, ahead of those decided since: the
+    /// next set carries them (its ball rows go with it: those frames are dropped).
+    fn give_back(&self, mut events: Vec<BallEvent>) {
+        if events.is_empty() {
+            return;
+        }
+        let mut h = self.lock();
+        events.append(&mut h.events);
+        h.events = events;
+    }
+
+    /// The events no set has carried.
+    fn take_events(&self) -> Vec<BallEvent> {
+        std::mem::take(&mut self.lock().events)
+    }
 }
 
 impl BallSink for BallShare {
@@ -129,8 +145,12 @@ impl MeasurementSink for SetSender {
         let gone = if self.live {
             match self.tx.try_send(set) {
                 Ok(()) => false,
-                Err(TrySendError::Full(_)) => {
+                Err(TrySendError::Full(set)) => {
                     self.dropped.fetch_add(1, Ordering::Relaxed);
+                    // A frame set may be dropped, an event (a goal) not.
+                    if let Some(b) = &self.ball {
+                        b.give_back(set.events);
+                    }
                     false
                 }
                 Err(TrySendError::Disconnected(_)) => true,
@@ -210,6 +230,15 @@ impl Stream {
             live,
             ball,
         })
+    }
+
+    /// The events decided after the last frame set was written (the end of the run decides
+    /// what was pending), once the session has ended; empty before, and after the first call.
+    pub fn take_final_events(&self) -> Vec<BallEvent> {
+        match (&self.ball, self.handle.is_none()) {
+            (Some(b), true) => b.take_events(),
+            _ => Vec::new(),
+        }
     }
 
     /// Ball rows dropped because no frame set took them in time (see [`MAX_HELD_BALL_ROWS`]).
@@ -359,6 +388,7 @@ mod tests {
                 }
             };
         }
+        events.extend(stream.take_final_events());
         assert_eq!(sets, 200);
         assert_eq!(ball, want_ball.rows(), "every ball row once, in order");
         assert_eq!(events, want_events.events());
@@ -366,6 +396,46 @@ mod tests {
             .iter()
             .any(|e| matches!(e.kind, rodtrack_core::ball::events::EventKind::Goal { .. })));
         assert_eq!(stream.dropped_ball_rows(), 0);
+    }
+
+    #[test]
+    fn a_live_reader_that_is_behind_loses_frame_sets_but_no_event() {
+        let cal = goals_calibration();
+        // Real time (200 fps): a reader slower than the cameras makes the session drop sets.
+        let inputs: Vec<String> = (0..2)
+            .map(|c| format!("sim://goals?camera={c}&frames=200&seed=3&realtime=1&prerender=200"))
+            .collect();
+        let share = BallShare::default();
+        let session = Session::open(&cal, &inputs, SessionOptions::default())
+            .unwrap()
+            .with_ball(&cal, Box::new(share.clone()))
+            .unwrap()
+            .with_events(&cal, Default::default(), Box::new(share.clone()))
+            .unwrap();
+        let mut stream = Stream::start(session, 1, Some(share)).unwrap();
+        assert!(stream.is_live());
+        let mut events = Vec::new();
+        loop {
+            match stream.next_timeout(Duration::from_secs(60)) {
+                Next::Set(set) => {
+                    events.extend(set.events);
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Next::Pending => panic!("no frame set within 60 s"),
+                Next::Ended(r) => {
+                    r.unwrap();
+                    break;
+                }
+            }
+        }
+        events.extend(stream.take_final_events());
+        assert!(
+            stream.dropped_sets() > 50,
+            "{} dropped",
+            stream.dropped_sets()
+        );
+        let kinds: Vec<&str> = events.iter().map(|e| e.kind.name()).collect();
+        assert_eq!(kinds, ["shot", "goal"], "{events:?}");
     }
 
     #[test]

@@ -71,6 +71,7 @@ def test_each_set_carries_its_ball_rows_and_events_as_the_cli_writes_them(goals,
             seen += fused.status_names()[0] == "ok"
             events.extend(s.events)
         assert session.dropped_ball_rows == 0
+    events.extend(session.final_events)
     assert sets == FRAMES
     fused_ok = sum(w["camera"] == "fused" and w["status"] == "ok" for w in want)
     assert seen == fused_ok > 0, f"the ball seen on {seen} frames, the CLI's {fused_ok}"

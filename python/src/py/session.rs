@@ -104,12 +104,7 @@ impl PyFrameSet {
     /// ``event`` (``goal``, ``shot``, ``ball_out``, ``ball_stopped``) and its fields.
     #[getter]
     fn events<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        let json = py.import("json")?;
-        self.set
-            .events
-            .iter()
-            .map(|e| json.call_method1("loads", (e.json_line(),)))
-            .collect()
+        events_as_dicts(py, &self.set.events)
     }
 
     fn __len__(&self) -> usize {
@@ -127,6 +122,18 @@ impl PyFrameSet {
     }
 }
 
+/// Events as dicts, each as a line of `--events-out` read by Python's `json`.
+pub(super) fn events_as_dicts<'py>(
+    py: Python<'py>,
+    events: &[rodtrack_core::ball::events::BallEvent],
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    let json = py.import("json")?;
+    events
+        .iter()
+        .map(|e| json.call_method1("loads", (e.json_line(),)))
+        .collect()
+}
+
 /// A running session: iterate it for its frame sets; use it as a context manager (``with``)
 /// or call ``close()`` to stop it. A closed session raises ``SessionClosed``.
 #[pyclass(module = "rodtrack", name = "Session")]
@@ -135,6 +142,8 @@ pub struct PySession {
     cameras: usize,
     report: Option<RunReport>,
     ended: bool,
+    /// The events decided after the last frame set, once the session has ended.
+    final_events: Vec<rodtrack_core::ball::events::BallEvent>,
 }
 
 impl PySession {
@@ -188,6 +197,11 @@ impl PySession {
                 Next::Pending => py.check_signals()?,
                 Next::Ended(result) => {
                     self.ended = true;
+                    if let Ok(guard) = self.stream.lock() {
+                        if let Some(stream) = guard.as_ref() {
+                            self.final_events.extend(stream.take_final_events());
+                        }
+                    }
                     self.report = Some(*result.map_err(to_py)?);
                     return Ok(None);
                 }
@@ -201,6 +215,7 @@ impl PySession {
         let stream = self.stream.lock().map(|mut s| s.take()).unwrap_or(None);
         if let Some(mut stream) = stream {
             let result = py.detach(|| stream.close());
+            self.final_events.extend(stream.take_final_events());
             if !self.ended {
                 self.ended = true;
                 self.report = Some(result.map_err(to_py)?);
@@ -238,6 +253,15 @@ impl PySession {
     #[getter]
     fn summary(&self) -> Option<String> {
         self.report.as_ref().map(|r| r.summary().trim().to_string())
+    }
+
+    /// The ball's events decided after the last frame set (the end of the run decides what
+    /// was still pending), once the session has ended or been closed: dicts as the frame
+    /// sets' ``events``. Every event goes out once, in a set or here (a live set dropped for
+    /// a loop that is behind hands its events to the next set).
+    #[getter]
+    fn final_events<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        events_as_dicts(py, &self.final_events)
     }
 
     /// Ball rows dropped because no frame set took them in time (the session's frame sets
@@ -319,5 +343,6 @@ pub fn open(
         cameras: cal.cameras.len(),
         report: None,
         ended: false,
+        final_events: Vec::new(),
     })
 }

@@ -97,11 +97,7 @@ impl PySimulation {
     /// as a line of ``rodtrack track --events-out``; empty without a ball.
     #[getter]
     fn events_truth<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        let json = py.import("json")?;
-        self.events
-            .iter()
-            .map(|e| json.call_method1("loads", (e.json_line(),)))
-            .collect()
+        super::session::events_as_dicts(py, &self.events)
     }
 
     /// Every camera calibrated as an operator would (simulated clicks with about 1 px of
