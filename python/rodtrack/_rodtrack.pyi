@@ -273,7 +273,7 @@ class Simulation:
         """The ball's truth per frame (``frame``, ``timestamp_s``, ``x_mm``, ``y_mm``, ``vx_mm_s``, ``vy_mm_s``, ``visible`` per camera), or ``None`` without a ball."""
     @property
     def events_truth(self) -> List[Dict[str, object]]:
-        """The scenario's scripted events, each as a line of ``--events-out``."""
+        """The scenario's scripted events within the simulation's frames, each as a line of ``--events-out``."""
 
 def calibrate(inputs: Sequence[_Path]) -> Calibration:
     """Calibrates camera ``i`` from calibration-inputs JSON file ``inputs[i]``."""

@@ -14,7 +14,7 @@ FRAMES = 200
 
 
 @pytest.fixture(scope="module")
-def goals(tmp_path_factory):
+def goals(tmp_path_factory, cli):
     """The `goals` table (seed 3: a shot, then a goal within 200 frames), calibrated with its
     ball and table frame, saved for the CLI."""
     sim = rodtrack.simulate("goals", frames=2, seed=3)
@@ -22,7 +22,13 @@ def goals(tmp_path_factory):
     calib = d / "calib.toml"
     sim.calibration.save(calib)
     inputs = [f"sim://goals?camera={c}&seed=3&frames={FRAMES}" for c in range(2)]
-    return {"cal": sim.calibration, "calib": calib, "dir": d, "inputs": inputs}
+    # The scripted events of the whole timeline, as `rodtrack simulate` writes them (the
+    # 2-frame Simulation above holds only its own frames' events).
+    cli("simulate", "--scenario", "goals", "--seed", "3", "--every", "100000", "--out", str(d / "rec"))
+    lines = (d / "rec" / "events_truth.jsonl").read_text().splitlines()
+    truth = [e for e in map(json.loads, lines) if e["frame"] < FRAMES]
+    assert sim.events_truth == [e for e in truth if e["frame"] < 2]
+    return {"cal": sim.calibration, "calib": calib, "dir": d, "inputs": inputs, "truth": truth}
 
 
 def fields(ball, i):
@@ -82,6 +88,13 @@ def test_each_set_carries_its_ball_rows_and_events_as_the_cli_writes_them(goals,
     assert events == want_events
     assert [e["event"] for e in events] == ["shot", "goal"], events
     assert events[1]["score"] == [1, 0]
+    # Against the scenario's scripted events of those frames: the same plays, within 2 frames,
+    # the shot by the rod that kicked.
+    truth = goals["truth"]
+    assert [e["event"] for e in truth] == ["shot", "goal"], truth
+    for t, e in zip(truth, events):
+        assert abs(t["frame"] - e["frame"]) <= 2, (t, e)
+    assert events[0]["rod"] == truth[0]["rod"] and events[1]["score"] == truth[1]["score"]
 
 
 def test_the_ball_is_asked_for(goals):
@@ -103,7 +116,6 @@ def test_the_ball_is_where_the_simulators_truth_has_it():
     truth = sim.ball_truth
     assert truth is not None and len(truth["x_mm"]) == frames
     assert truth["visible"].shape == (frames, 2)
-    assert sim.events_truth == [] or all("event" in e for e in sim.events_truth)
     inputs = [f"sim://ball?camera={c}&seed=3&frames={frames}" for c in range(2)]
     errors, found, visible = [], 0, 0
     with rodtrack.open(sim.calibration, inputs=inputs, ball=True) as session:

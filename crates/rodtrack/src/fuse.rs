@@ -111,19 +111,22 @@ pub fn run(args: Args) -> Result<()> {
         taken.extend(args.mcap.as_deref());
         rodtrack_sdk::check_out_is_not_an_input(e, &taken)?;
     }
+    // The events' rules, read and checked before the network is joined.
     let detected = args.events.events_out.is_some() || args.zenoh_events;
-    args.events
+    let rules = args
+        .events
         .config(detected, "--events-out FILE or --zenoh-events")?;
-    run_node(args)
+    run_node(args, detected.then_some(rules))
 }
 
 #[cfg(not(feature = "zenoh"))]
-fn run_node(_args: Args) -> Result<()> {
+fn run_node(_args: Args, _rules: Option<rodtrack_core::ball::events::EventConfig>) -> Result<()> {
     Err(crate::network::no_zenoh())
 }
 
+/// Runs the fusion node; `rules`: the events' rules when the events are detected.
 #[cfg(feature = "zenoh")]
-fn run_node(args: Args) -> Result<()> {
+fn run_node(args: Args, rules: Option<rodtrack_core::ball::events::EventConfig>) -> Result<()> {
     use anyhow::Context;
     use rodtrack_sdk::{open_sinks, RowFormat};
     use rodtrack_zenoh::fusion::{
@@ -232,7 +235,7 @@ fn run_node(args: Args) -> Result<()> {
         }
         (None, ball) => ball,
     };
-    let events = if args.events.events_out.is_some() || args.zenoh_events {
+    let events = if let Some(config) = rules {
         if cal.cameras.iter().all(|c| c.ball.is_none()) {
             bail!(
                 "the events (--events-out, --zenoh-events) need the ball: no camera of {} has a ball calibration (`[cameras.ball]`)",
@@ -254,9 +257,7 @@ fn run_node(args: Args) -> Result<()> {
             eprintln!("the ball's events on rodtrack/{table}/fused/events");
         }
         Some(FusionEvents {
-            config: args
-                .events
-                .config(true, "--events-out FILE or --zenoh-events")?,
+            config,
             sink: Some(Box::new(sink)),
         })
     } else {

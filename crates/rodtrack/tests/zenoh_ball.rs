@@ -16,7 +16,7 @@ use std::time::Duration;
 
 mod zenoh_common;
 use zenoh_common::{
-    calibration, camera_nodes, dir, free_port, run_ok, test_session, unix_ms, Proc,
+    calibration, camera_nodes, dir, end_run, free_port, run_ok, test_session, unix_ms, Proc,
 };
 
 /// Frames prerendered by each node.
@@ -124,11 +124,11 @@ fn ball_rows_cross_the_network_and_fuse_as_in_process() {
         |cam| sim(cam, Some(t0)),
         &["--zenoh-ball", "--max-frames", &frames],
     );
-    for n in &mut nodes {
-        n.wait(Duration::from_millis(START_MS + 20_000));
-    }
-    std::thread::sleep(Duration::from_millis(500));
-    let log = fusion.interrupt(Duration::from_secs(10));
+    let log = end_run(
+        &mut nodes,
+        &mut fusion,
+        Duration::from_millis(START_MS + 20_000),
+    );
     assert!(log.contains("ball rows:"), "{log}");
 
     // The same frames in one process.

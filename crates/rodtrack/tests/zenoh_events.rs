@@ -13,7 +13,8 @@ use std::time::Duration;
 
 mod zenoh_common;
 use zenoh_common::{
-    calibration_of, camera_nodes, collect_text, dir, free_port, run_ok, test_session, unix_ms, Proc,
+    calibration_of, camera_nodes, collect_text, dir, end_run, free_port, run_ok, test_session,
+    unix_ms, Proc,
 };
 
 /// The scenario's frames (its goal is at frame 93 of seed 3).
@@ -76,11 +77,11 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
     let seen = collect_text(&session, "rodtrack/default/fused/events");
     let t0 = unix_ms() + START_MS;
     let mut nodes = camera_nodes(&t, &c, port, |cam| sim(cam, Some(t0)), &["--zenoh-ball"]);
-    for n in &mut nodes {
-        n.wait(Duration::from_millis(START_MS + 20_000));
-    }
-    std::thread::sleep(Duration::from_millis(500));
-    let log = fusion.interrupt(Duration::from_secs(10));
+    let log = end_run(
+        &mut nodes,
+        &mut fusion,
+        Duration::from_millis(START_MS + 20_000),
+    );
     assert!(log.contains("events: 1 goal(s), score 1:0"), "{log}");
 
     // The same frames in one process.

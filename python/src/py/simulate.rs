@@ -93,8 +93,8 @@ impl PySimulation {
         Ok(Some(d))
     }
 
-    /// The scenario's scripted events over its whole timeline (goals, shots, ...), each a dict
-    /// as a line of ``rodtrack track --events-out``; empty without a ball.
+    /// The scenario's scripted events within the simulation's frames (goals, shots, ...), each
+    /// a dict as a line of ``rodtrack track --events-out``; empty without a ball.
     #[getter]
     fn events_truth<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
         super::session::events_as_dicts(py, &self.events)

@@ -81,6 +81,16 @@ pub fn camera_nodes(
         .collect()
 }
 
+/// Waits for every camera node to end by itself (at most `limit` each), gives the fusion node
+/// half a second for the last messages, then stops it (Ctrl-C): its log.
+pub fn end_run(nodes: &mut [Proc], fusion: &mut Proc, limit: Duration) -> String {
+    for n in nodes.iter_mut() {
+        n.wait(limit);
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    fusion.interrupt(Duration::from_secs(10))
+}
+
 /// A zenoh session of the test's own on `tcp/127.0.0.1:<port>`, multicast scouting off:
 /// `mode` `connect` or `listen`.
 pub fn test_session(mode: &str, port: u16) -> rodtrack_zenoh::zenoh::Session {
