@@ -6,19 +6,21 @@
 //! counters on `.../status` once a second; [`CameraNode::end`] says the run ended. With a
 //! preview rate, the hooks also publish a downscaled image of the camera's latest frame on
 //! `.../preview` that many times per second (module `camera_preview`).
-//! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`. With a ROS 2
+//! [`CameraNode::ball_sink`] publishes the camera's ball rows on `.../ball`, and
+//! [`CameraNode::event_sink`] the ball's events detected from this camera on `.../events`. With a ROS 2
 //! domain the filtered rows also go out as `sensor_msgs/msg/JointState`, and the ball rows as
 //! `geometry_msgs/msg/PointStamped` and `Vector3Stamped` ([`crate::ros2`]).
 
 use crate::camera_preview::PreviewFeed;
 use crate::layout::{camera_bit, Header, Kind};
-use crate::net::{camera_key, check_chunk, NetworkOptions, RowPublisher};
+use crate::net::{camera_key, check_chunk, net_error, NetworkOptions, RowPublisher};
 use crate::ros2::{Ros2BallPublisher, Ros2Names, Ros2Node, Ros2Publisher};
 use crate::ZenohError;
+use rodtrack_core::ball::events::BallEvent;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::CameraId;
 use rodtrack_core::{CameraPipeline, Measurement, Timestamp};
-use rodtrack_io::{BallSink, FrameBuffer, FrameMeta, IoError, MeasurementSink};
+use rodtrack_io::{BallSink, EventSink, FrameBuffer, FrameMeta, IoError, MeasurementSink};
 use rodtrack_sdk::{Hooks, Progress};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -30,6 +32,7 @@ pub struct CameraNode {
     rows: RowPublisher,
     raw: RowPublisher,
     ball: RowPublisher,
+    events: RowPublisher,
     status: RowPublisher,
     ros2: Option<Ros2Publisher>,
     ros2_ball: Option<Ros2BallPublisher>,
@@ -98,6 +101,7 @@ impl CameraNode {
             rows: decl("rows", net.format)?,
             raw: decl("raw", net.format)?,
             ball: decl("ball", net.format)?,
+            events: decl("events", crate::net::WireFormat::Json)?,
             status: decl("status", crate::net::WireFormat::Json)?,
             preview,
             _session: session,
@@ -126,6 +130,16 @@ impl CameraNode {
     /// `.../ball` (one message per write: a frame's rows).
     pub fn ball_sink(self: &Arc<Self>) -> CameraBallSink {
         CameraBallSink { node: self.clone() }
+    }
+
+    /// An event sink that publishes the ball's events detected from this camera alone on
+    /// `.../events`, each as one JSON message (its line of `--events-out`), as the fusion node
+    /// does on `.../fused/events`.
+    pub fn event_sink(self: &Arc<Self>) -> CameraEventSink {
+        CameraEventSink {
+            node: self.clone(),
+            text: String::new(),
+        }
     }
 
     /// Hooks that publish the measured rows and the status, then call `inner`.
@@ -202,10 +216,6 @@ impl MeasurementSink for CameraRowsSink {
         let r = n
             .rows
             .publish_runs(Kind::CameraRows, true, camera_bit(n.index), rows);
-        let net_error = |key: &str, e: ZenohError| IoError::Net {
-            addr: key.to_string(),
-            source: std::io::Error::other(e.to_string()),
-        };
         let rows_result = n.count(r).map_err(|e| net_error(n.rows.key(), e));
         // After the node's own rows: ROS 2 subscribers do not hold up the fusion's input.
         // Both are tried and counted; the rows' error is reported first.
@@ -236,10 +246,7 @@ impl BallSink for CameraBallSink {
         let n = &self.node;
         let result = n
             .count(n.ball.publish_ball(rows, sigma_mm))
-            .map_err(|e| IoError::Net {
-                addr: n.ball.key().to_string(),
-                source: std::io::Error::other(e.to_string()),
-            });
+            .map_err(|e| net_error(n.ball.key(), e));
         // After rodtrack's own ball rows, as the joint states after the rows.
         let Some(p) = &n.ros2_ball else {
             return result;
@@ -250,13 +257,32 @@ impl BallSink for CameraBallSink {
             .filter(|r| r.camera == CameraId::Camera(n.index))
         {
             if let Err(e) = n.count(p.publish(r).map(|_| ())) {
-                ros2_result = ros2_result.and(Err(IoError::Net {
-                    addr: p.key().to_string(),
-                    source: std::io::Error::other(e.to_string()),
-                }));
+                ros2_result = ros2_result.and(Err(net_error(p.key(), e)));
             }
         }
         result.and(ros2_result)
+    }
+    fn flush(&mut self) -> Result<(), IoError> {
+        Ok(())
+    }
+}
+
+/// Publishes the events written to it on the camera's `.../events` (see
+/// [`CameraNode::event_sink`]).
+pub struct CameraEventSink {
+    node: Arc<CameraNode>,
+    /// One event's JSON, kept for its capacity.
+    text: String,
+}
+
+impl EventSink for CameraEventSink {
+    fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
+        let n = &self.node;
+        let r = n.events.publish_events(events, &mut self.text);
+        if r.is_err() {
+            n.publish_errors.fetch_add(1, Ordering::Relaxed);
+        }
+        r
     }
     fn flush(&mut self) -> Result<(), IoError> {
         Ok(())

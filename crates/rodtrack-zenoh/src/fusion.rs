@@ -329,11 +329,7 @@ impl std::fmt::Display for FusionReport {
                 c.ok, c.predicted, c.lost, c.conflict, b.refused
             )?;
             if let Some(e) = &b.events {
-                writeln!(
-                    f,
-                    "  events: {} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
-                    e.goals, e.score[0], e.score[1], e.shots, e.ball_out, e.ball_stopped
-                )?;
+                writeln!(f, "  events: {e}")?;
             }
         }
         Ok(())

@@ -3,7 +3,7 @@
 //!
 //! Subscribed key expressions (`<table>` from the options):
 //! `rodtrack/<table>/cam/*/rows`, `.../cam/*/status`, `.../cam/*/preview`, `.../cam/*/ball`,
-//! `rodtrack/<table>/fused/rows`, `.../fused/status`, `.../fused/ball`, `.../fused/events`. Each
+//! `.../cam/*/events`, `rodtrack/<table>/fused/rows`, `.../fused/status`, `.../fused/ball`, `.../fused/events`. Each
 //! message is decoded and handed to
 //! the callback as a [`NodeEvent`]; a message that does not decode (or a row message of the
 //! wrong kind, a status that is not a JSON object) is a [`NodeEvent::Malformed`], counted,
@@ -74,10 +74,13 @@ pub enum NodeEvent<'a> {
         /// The rows.
         rows: Vec<BallRow>,
     },
-    /// One of the ball's events (the fusion node's, as a line of `--events-out`).
+    /// One of the ball's events, as a line of `--events-out`: the fusion node's, or a camera
+    /// node's (`track --publish zenoh --zenoh-events`: its camera alone).
     Event {
         /// The key expression it came on.
         key: &'a str,
+        /// Its node.
+        node: Node,
         /// The event.
         event: BallEvent,
     },
@@ -140,6 +143,7 @@ impl Monitor {
             (camera_key(&table, "*", "status"), What::Status),
             (camera_key(&table, "*", "preview"), What::Preview),
             (camera_key(&table, "*", "ball"), What::Ball),
+            (camera_key(&table, "*", "events"), What::Event),
             (fused_key(&table, "rows"), What::Rows),
             (fused_key(&table, "status"), What::Status),
             (fused_key(&table, "ball"), What::Ball),
@@ -256,14 +260,11 @@ fn interpret<'a>(key: &'a str, what: What, bytes: &[u8]) -> Result<NodeEvent<'a>
             NodeEvent::Ball { key, node, rows }
         }
         What::Event => {
-            if matches!(node, Node::Camera(_)) {
-                return Err(ZenohError::Message("events of a camera node".into()));
-            }
             let text = std::str::from_utf8(bytes)
                 .map_err(|_| ZenohError::Message("an event that is not UTF-8 text".into()))?;
             let event = parse_event_json(text, Path::new(key), 1)
                 .map_err(|e| ZenohError::Message(format!("event: {e}")))?;
-            NodeEvent::Event { key, event }
+            NodeEvent::Event { key, node, event }
         }
         What::Preview => {
             if matches!(node, Node::Fusion) {
@@ -353,7 +354,13 @@ mod tests {
             }
             ev => panic!("{ev:?}"),
         }
-        assert!(e("rodtrack/t/cam/c/events", What::Event, goal).contains("camera node"));
+        match interpret("rodtrack/t/cam/c/events", What::Event, goal).unwrap() {
+            NodeEvent::Event { node, event, .. } => {
+                assert_eq!(node, Node::Camera("c".into()));
+                assert_eq!(event.frame, 93);
+            }
+            ev => panic!("{ev:?}"),
+        }
         assert!(e("rodtrack/t/fused/events", What::Event, b"{\"frame\":1}").contains("event:"));
         assert!(e("rodtrack/t/fused/events", What::Event, &[0xff, 0xfe]).contains("UTF-8"));
     }

@@ -2,8 +2,10 @@
 
 use crate::layout::{self, Header, Kind};
 use crate::{ball_layout, ZenohError};
+use rodtrack_core::ball::events::BallEvent;
 use rodtrack_core::ball::BallRow;
 use rodtrack_core::Measurement;
+use rodtrack_io::IoError;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Mutex;
@@ -243,9 +245,32 @@ impl RowPublisher {
             .map_err(|e| ZenohError::zenoh(format!("publishing on {}", self.key()), e))
     }
 
+    /// Publishes each event as one JSON message (its line of `--events-out`); `text` is a
+    /// buffer kept for its capacity. Every event is tried; the first failure is returned, as
+    /// the sinks report it.
+    pub fn publish_events(&self, events: &[BallEvent], text: &mut String) -> Result<(), IoError> {
+        let mut first = Ok(());
+        for e in events {
+            text.clear();
+            e.push_json(text);
+            if let Err(err) = self.publish_text(text) {
+                first = first.and(Err(net_error(self.key(), err)));
+            }
+        }
+        first
+    }
+
     /// The key expression.
     pub fn key(&self) -> &str {
         self.publisher.key_expr().as_str()
+    }
+}
+
+/// A publication's failure as the sinks report it, naming the key expression.
+pub(crate) fn net_error(key: &str, e: ZenohError) -> IoError {
+    IoError::Net {
+        addr: key.to_string(),
+        source: std::io::Error::other(e.to_string()),
     }
 }
 

@@ -1,7 +1,8 @@
 //! `rodtrack console --subscribe zenoh`: the web console fed from a camera network: every
 //! camera node's rows, status and preview frames, the fusion node's fused rows and status,
 //! and the ball: the fusion node's, or a camera node's where the table has no fusion node
-//! publishing one, with the fusion node's events and score (docs/network.md).
+//! publishing one, with the events and score of the same rule: the fusion node's once it sends
+//! one, else a camera node's (`track --publish zenoh --zenoh-events`) (docs/network.md).
 
 use crate::console::Args;
 use anyhow::Result;
@@ -21,9 +22,9 @@ pub fn run(_args: &Args) -> Result<()> {
 pub fn run(args: &Args) -> Result<()> {
     use anyhow::Context;
     use rodtrack_console::{Console, ConsoleOptions, Preview};
-    use rodtrack_zenoh::monitor::{Monitor, Node, NodeEvent};
+    use rodtrack_zenoh::monitor::{Monitor, NodeEvent};
     use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::{Arc, Mutex};
+    use std::sync::Arc;
     use std::time::{Duration, Instant};
 
     crate::interrupt::catch_early();
@@ -42,21 +43,20 @@ pub fn run(args: &Args) -> Result<()> {
     let c = console.clone();
     // The node whose ball is shown: the fusion node once it sends one, else the first camera
     // node that does (each frame's rows shown once, not once per node).
-    let ball_from: Mutex<Option<Node>> = Mutex::new(None);
+    // The events likewise (a camera node's own events count the score of its camera alone).
+    let (ball_from, events_from) = (Shown::default(), Shown::default());
     let monitor = Monitor::open(&net, move |event| match event {
         NodeEvent::Rows { message, .. } => c.publish_rows(&message.rows),
         NodeEvent::Ball { node, rows, .. } => {
-            let mut from = ball_from.lock().unwrap_or_else(|e| e.into_inner());
-            let shown = match (&*from, &node) {
-                (_, Node::Fusion) | (None, _) => true,
-                (Some(f), n) => f == n,
-            };
-            if shown {
-                *from = Some(node);
+            if ball_from.shows(node) {
                 c.publish_ball(&rows);
             }
         }
-        NodeEvent::Event { event, .. } => c.publish_events(&[event]),
+        NodeEvent::Event { node, event, .. } => {
+            if events_from.shows(node) {
+                c.publish_events(&[event]);
+            }
+        }
         NodeEvent::Status { node, status, .. } => c.publish_node_status(&node.label(), status),
         NodeEvent::Preview { key, preview, .. } => {
             let h = preview.header;
@@ -105,4 +105,28 @@ pub fn run(args: &Args) -> Result<()> {
         eprintln!("{malformed} malformed message(s) received");
     }
     Ok(())
+}
+
+/// Which node's ball (or events) the console shows: the fusion node's once it sends one, else
+/// the first camera node's that does; each frame's rows (each event) shown once, not once per
+/// node.
+#[cfg(feature = "zenoh")]
+#[derive(Default)]
+struct Shown(std::sync::Mutex<Option<rodtrack_zenoh::monitor::Node>>);
+
+#[cfg(feature = "zenoh")]
+impl Shown {
+    /// Whether a message of `node` is shown (and from then on the node shown).
+    fn shows(&self, node: rodtrack_zenoh::monitor::Node) -> bool {
+        use rodtrack_zenoh::monitor::Node;
+        let mut from = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let shown = match (&*from, &node) {
+            (_, Node::Fusion) | (None, _) => true,
+            (Some(f), n) => f == n,
+        };
+        if shown {
+            *from = Some(node);
+        }
+        shown
+    }
 }

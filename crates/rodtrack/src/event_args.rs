@@ -51,14 +51,5 @@ impl EventArgs {
 
 /// The line a command prints for the events it wrote to `path`.
 pub fn written(path: &std::path::Path, e: &rodtrack_sdk::EventCounts) -> String {
-    format!(
-        "wrote {}: {} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
-        path.display(),
-        e.goals,
-        e.score[0],
-        e.score[1],
-        e.shots,
-        e.ball_out,
-        e.ball_stopped
-    )
+    format!("wrote {}: {e}", path.display())
 }

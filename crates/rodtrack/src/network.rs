@@ -131,6 +131,14 @@ pub fn node_ball_sink(node: &Node) -> Box<dyn rodtrack_io::BallSink> {
     match *node {}
 }
 
+/// The event sink that publishes the events detected from the camera on `.../events`.
+pub fn node_event_sink(node: &Node) -> Box<dyn rodtrack_io::EventSink> {
+    #[cfg(feature = "zenoh")]
+    return Box::new(node.event_sink());
+    #[cfg(not(feature = "zenoh"))]
+    match *node {}
+}
+
 /// The hooks that publish the measured rows and the status, then call `inner`.
 pub fn node_hooks(node: &Node, inner: Arc<dyn Hooks>) -> Arc<dyn Hooks> {
     #[cfg(feature = "zenoh")]

@@ -87,6 +87,12 @@ pub struct Args {
     /// `rodtrack/<table>/cam/<camera>/ball` (the fusion node fuses them per frame).
     #[arg(long, requires = "publish")]
     pub zenoh_ball: bool,
+    /// With --publish: detect the ball's events from this camera alone and publish them on
+    /// `rodtrack/<table>/cam/<camera>/events` (one JSON object per event, as a line of
+    /// --events-out), with or without --events-out: a table one camera sees whole, with no
+    /// fusion node.
+    #[arg(long, requires = "publish")]
+    pub zenoh_events: bool,
     /// With --publish zenoh: also publish this camera's rows for ROS 2 over rmw_zenoh in this
     /// domain (ROS_DOMAIN_ID), as sensor_msgs/msg/JointState on
     /// `/rodtrack/<table>/cam/<camera>/joint_states`: a table of one camera in ROS 2; with
@@ -185,9 +191,10 @@ pub fn run(args: Args) -> Result<()> {
         taken.extend(args.ball_out.as_deref());
         check_out_is_not_an_input(e, &taken)?;
     }
+    let events_wanted = args.events.events_out.is_some() || args.zenoh_events;
     let events_config = args
         .events
-        .config(args.events.events_out.is_some(), "--events-out FILE")?;
+        .config(events_wanted, "--events-out FILE or --zenoh-events")?;
     let mut cal = read_calibration(&args.calib)?;
     let mode = args.mode.into();
     if args.publish.is_some() {
@@ -251,7 +258,7 @@ pub fn run(args: Args) -> Result<()> {
     let cameras = cal.cameras.iter().map(|c| (c.index, c.name.clone()));
     let recording = crate::recording::open(&args.mcap, &args.net.table, cameras.collect())?;
     let ball_on_network = args.zenoh_ball && node.is_some();
-    if args.ball_out.is_some() || args.events.events_out.is_some() || ball_on_network {
+    if args.ball_out.is_some() || events_wanted || ball_on_network {
         let mut sink = rodtrack_io::BallMultiSink::new();
         // A recording holds the ball's rows when the ball is tracked.
         if let Some(s) = recording
@@ -289,11 +296,18 @@ pub fn run(args: Args) -> Result<()> {
         }
         session = session.with_ball(&cal, Box::new(sink))?;
     }
-    if let Some(path) = &args.events.events_out {
-        let file = rodtrack_io::EventJsonlSink::create(path)
-            .with_context(|| format!("creating the events output {}", path.display()))?;
+    if events_wanted {
         let mut sink = rodtrack_io::EventMultiSink::new();
-        sink.push(Box::new(file));
+        if let Some(path) = &args.events.events_out {
+            sink.push(Box::new(
+                rodtrack_io::EventJsonlSink::create(path)
+                    .with_context(|| format!("creating the events output {}", path.display()))?,
+            ));
+        }
+        // A camera node's events on `.../cam/<camera>/events` (--zenoh-events).
+        if let (Some(n), true) = (&node, args.zenoh_events) {
+            sink.push(crate::network::node_event_sink(n));
+        }
         // A recording holds the events when they are detected.
         if let Some(r) = &recording {
             sink.push(Box::new(r.event_sink()));
@@ -307,9 +321,13 @@ pub fn run(args: Args) -> Result<()> {
         if let Some(c) = &console {
             sink.push(Box::new(crate::console_hooks::ConsoleEvents(c.clone())));
         }
+        let what = match &args.events.events_out {
+            Some(path) => path.display().to_string(),
+            None => "--zenoh-events".to_string(),
+        };
         session = session
             .with_events(&cal, events_config, Box::new(sink))
-            .with_context(|| format!("detecting the events for {}", path.display()))?;
+            .with_context(|| format!("detecting the events for {what}"))?;
     }
     for cam in session.cameras() {
         print_source_warnings(&cam.label, &*cam.source);
@@ -393,8 +411,10 @@ pub fn run(args: Args) -> Result<()> {
             b.lost
         );
     }
-    if let (Some(path), Some(e)) = (&args.events.events_out, report.events) {
-        println!("{}", crate::event_args::written(path, &e));
+    match (&args.events.events_out, report.events) {
+        (Some(path), Some(e)) => println!("{}", crate::event_args::written(path, &e)),
+        (None, Some(e)) => println!("published the events: {e}"),
+        (_, None) => {}
     }
     match &args.out {
         Some(o) if o.as_os_str() == "-" => eprintln!("wrote standard output"),

@@ -3,7 +3,8 @@
 //! `--zenoh-events`, each its own `rodtrack` process on loopback. The events file must be that
 //! of one in-process session on the same frames (`track --events-out`), and each event must go
 //! out on `rodtrack/<table>/fused/events` as its line of the file, and again when the fusion
-//! node's recording (`--mcap`) is replayed.
+//! node's recording (`--mcap`) is replayed. A camera node alone (`track --publish zenoh
+//! --zenoh-events`) publishes the events of its camera on `.../cam/<camera>/events`.
 #![cfg(feature = "zenoh")]
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
@@ -147,6 +148,56 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
     );
     std::thread::sleep(Duration::from_millis(200));
     assert_eq!(*replayed.lock().unwrap(), want, "replayed events");
+    session.close().wait().unwrap();
+}
+
+#[test]
+fn a_camera_node_alone_publishes_its_cameras_events() {
+    let t = dir("zenoh_events_camera");
+    let calib = calibration_of(&t, "goals", &["--seed", "3", "--every", "100000"]);
+    let c = calib.display().to_string();
+    let port = free_port();
+    // A control program listens; the camera node connects to it.
+    let session = test_session("listen", port);
+    let seen = collect_text(&session, "rodtrack/default/cam/cam1/events");
+    let events = t.join("events.jsonl");
+    // One node renders its frames before the trigger: half the two nodes' time.
+    let t0 = unix_ms() + START_MS / 2;
+    let mut node = Proc::start(
+        &[
+            "track",
+            "--calib",
+            &c,
+            "--camera",
+            "cam1",
+            "--input",
+            &sim(1, Some(t0)),
+            "--publish",
+            "zenoh",
+            "--zenoh-connect",
+            &format!("tcp/127.0.0.1:{port}"),
+            "--zenoh-events",
+            "--events-out",
+            &events.display().to_string(),
+        ]
+        .map(String::from),
+        t.join("cam1.err"),
+    );
+    node.wait(Duration::from_millis(START_MS / 2 + 20_000));
+    let want = read_lines(&events);
+    // The scenario's shot (rod 3, frame 62) and goal (frame 93, for side a), from camera 1 alone.
+    assert!(
+        want.iter()
+            .any(|l| l.contains("\"event\":\"shot\"") && l.contains("\"rod\":3")),
+        "{want:?}"
+    );
+    assert!(
+        want.iter()
+            .any(|l| l.contains("\"event\":\"goal\"") && l.contains("\"score\":[1,0]")),
+        "{want:?}"
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(*seen.lock().unwrap(), want, "events on cam/cam1/events");
     session.close().wait().unwrap();
 }
 

@@ -31,6 +31,17 @@ pub struct EventCounts {
     pub score: [u32; 2],
 }
 
+impl std::fmt::Display for EventCounts {
+    /// `1 goal(s), score 1:0 (a:b), 2 shot(s), 0 ball out, 1 ball stopped`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} goal(s), score {}:{} (a:b), {} shot(s), {} ball out, {} ball stopped",
+            self.goals, self.score[0], self.score[1], self.shots, self.ball_out, self.ball_stopped
+        )
+    }
+}
+
 /// The events of the frame sets' ball rows: the detector and its sink.
 pub(super) struct EventStage {
     det: EventDetector,

@@ -6,7 +6,7 @@
 //! waited for at most the loss time in frames.
 
 use crate::ball_layout::decode_ball;
-use crate::net::{fused_key, RowPublisher};
+use crate::net::{fused_key, net_error, RowPublisher};
 use crate::ros2::Ros2BallPublisher;
 use crate::ZenohError;
 use rodtrack_core::ball::events::{BallEvent, EventConfig};
@@ -75,18 +75,10 @@ struct EventOut {
 
 impl EventSink for EventOut {
     fn write(&mut self, events: &[BallEvent]) -> Result<(), IoError> {
-        let mut first = Ok(());
-        if let Some(p) = &self.publisher {
-            for e in events {
-                self.text.clear();
-                e.push_json(&mut self.text);
-                if let Err(err) = p.publish_text(&self.text) {
-                    if first.is_ok() {
-                        first = Err(net_error(p.key(), err));
-                    }
-                }
-            }
-        }
+        let mut first = match &self.publisher {
+            Some(p) => p.publish_events(events, &mut self.text),
+            None => Ok(()),
+        };
         if let Some(s) = self.inner.as_mut() {
             let r = s.write(events);
             if first.is_ok() {
@@ -97,14 +89,6 @@ impl EventSink for EventOut {
     }
     fn flush(&mut self) -> Result<(), IoError> {
         self.inner.as_mut().map_or(Ok(()), |s| s.flush())
-    }
-}
-
-/// A publication's failure as the sinks report it, naming the key expression.
-fn net_error(key: &str, e: ZenohError) -> IoError {
-    IoError::Net {
-        addr: key.to_string(),
-        source: std::io::Error::other(e.to_string()),
     }
 }
 
