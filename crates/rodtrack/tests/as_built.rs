@@ -223,12 +223,13 @@ fn random_setups_with_known_poses_meet_the_targets() {
 
 /// Known poses without their angle (an operator who pushes the rods to their stops and does
 /// not know their angle there, as in the validation set): they carry the scale along the
-/// travel (position within the accuracy issue's targets, no gross error, full coverage); the
-/// lines run through the rods' common vanishing point. The angle's target is not met this way
-/// on every table (docs/accuracy.md): it is printed.
+/// travel and place each rod's line; its direction is the rods' common one, from the bare
+/// rods' outlines beyond the markers. Position and angle within the accuracy issue's targets,
+/// no gross error, full coverage. Setup 9 read 0.0023 rad std, 0.0133 rad max (its cameras
+/// together) while the common direction came from the markers' silhouettes.
 #[test]
-fn random_setups_with_known_positions_alone_meet_the_position_targets() {
-    for seed in [11, 13] {
+fn random_setups_with_known_positions_alone_meet_the_targets() {
+    for seed in [9, 11, 13] {
         let s = run_setup(seed, Known::PositionOnly, "25");
         assert!(s.coverage >= 0.99, "setup {seed}: coverage {}", s.coverage);
         assert_eq!(s.gross, 0, "setup {seed}: gross errors");
@@ -239,9 +240,11 @@ fn random_setups_with_known_positions_alone_meet_the_position_targets() {
             s.pos_std_mm,
             s.pos_max_mm
         );
-        eprintln!(
-            "setup {seed}, known positions alone: angle std {:.4} rad, max {:.4} rad",
-            s.ang_std_rad, s.ang_max_rad
+        assert!(
+            s.ang_std_rad <= 0.002 && s.ang_max_rad <= 0.01,
+            "setup {seed}: angle std {} rad, max {} rad",
+            s.ang_std_rad,
+            s.ang_max_rad
         );
     }
 }

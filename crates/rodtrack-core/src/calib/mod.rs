@@ -10,6 +10,7 @@ mod image_size;
 pub mod inputs;
 mod kernel_search;
 mod known;
+mod limbs;
 pub mod opencv;
 pub mod rods;
 mod silhouette;

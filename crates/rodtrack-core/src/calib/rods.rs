@@ -65,8 +65,22 @@ pub fn calibrate_rods(
         .filter_map(|c| c.as_ref().ok())
         .filter_map(|c| rod_plane(c, k))
         .collect();
+    // The bare rods' outlines beyond their markers, where three rods or more show one: they
+    // run over far more of each rod than its marker's travel (module `limbs`).
+    let mut outlined = 0;
+    let mut outlines = Vec::new();
+    for (c, i) in first.iter().zip(&inputs) {
+        if let (Ok(c), Ok((view, _))) = (c, i) {
+            let p = super::limbs::limb_planes(c, view, k);
+            outlined += usize::from(!p.is_empty());
+            outlines.extend(p);
+        }
+    }
     // Three rods at least: two always meet somewhere.
-    match robust_common_direction(&planes).filter(|_| planes.len() >= 3) {
+    let direction = robust_common_direction(&outlines)
+        .filter(|_| outlined >= 3)
+        .or_else(|| robust_common_direction(&planes).filter(|_| planes.len() >= 3));
+    match direction {
         Some(d) => pass(Some(d)),
         None => first,
     }
