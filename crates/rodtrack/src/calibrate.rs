@@ -117,6 +117,16 @@ fn write_file(out: &Path, cameras: Vec<CameraCalibration>) -> Result<()> {
 /// Prints per-rod residuals and warnings.
 pub fn print_report(cam: &CameraCalibration) {
     println!("camera {} ({}):", cam.index, cam.name);
+    if let Some(r) = cam
+        .rods
+        .iter()
+        .find(|r| !r.residuals.common_direction.is_empty())
+    {
+        println!(
+            "  the rods' common direction: {}",
+            r.residuals.common_direction
+        );
+    }
     println!(
         "  rod  line    path rms/max px  edge rms mm  ref ncc  code-phase steps  radius ratio  paper"
     );

@@ -119,6 +119,15 @@ fn run_setup(seed: u64, known: Known, frames: &str) -> Score {
         calib.contains(&format!("along the travel: {model}")),
         "setup {seed}: calibration did not use {model}:\n{calib}"
     );
+    // The simulator's steel rods stand out from the field on both sides: every camera's rods'
+    // common direction comes from their outlines.
+    assert_eq!(
+        calib
+            .matches("the rods' common direction: outlines: ")
+            .count(),
+        2,
+        "setup {seed}: the common direction not from the outlines:\n{calib}"
+    );
     rodtrack(&[
         "track",
         "--calib",

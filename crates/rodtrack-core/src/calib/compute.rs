@@ -534,6 +534,7 @@ pub fn calibrate_rod_with(
         travel_model: travel_model.to_string(),
         depth_change_per_m: along.h * 1000.0,
         depth_change_per_m_from_rods: h_from_rods.map(|h| h.0 * 1000.0),
+        common_direction: String::new(),
         known_pose_errors_mm: Vec::new(),
         warnings,
     };

@@ -147,6 +147,12 @@ pub struct Residuals {
     /// known poses' fit), when there is a camera model and enough rods.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth_change_per_m_from_rods: Option<f64>,
+    /// Where the direction the camera's rods share (their vanishing point) came from: the bare
+    /// rods' outlines (`outlines: S sides of N rods`) or the markers' lines (`marker lines
+    /// ...`, with why the outlines were not used); empty without a camera model. The same for
+    /// every rod of a camera.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub common_direction: String,
     /// At each known pose: `[frame, position error mm]` of the barcode read with the final
     /// calibration against the pose given.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

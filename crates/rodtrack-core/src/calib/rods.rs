@@ -77,13 +77,28 @@ pub fn calibrate_rods(
         }
     }
     // Three rods at least: two always meet somewhere.
-    let direction = robust_common_direction(&outlines)
-        .filter(|_| outlined >= 3)
-        .or_else(|| robust_common_direction(&planes).filter(|_| planes.len() >= 3));
-    match direction {
-        Some(d) => pass(Some(d)),
-        None => first,
+    let rods_ok = first.iter().filter(|c| c.is_ok()).count();
+    let (direction, source) = match robust_common_direction(&outlines).filter(|_| outlined >= 3) {
+        Some(d) => (
+            Some(d),
+            format!("outlines: {} sides of {outlined} rods", outlines.len()),
+        ),
+        None => (
+            robust_common_direction(&planes).filter(|_| planes.len() >= 3),
+            format!(
+                "marker lines (the bare rods' outlines stand out from the background beside \
+                 {outlined} of {rods_ok} rods, 3 needed)"
+            ),
+        ),
+    };
+    let Some(d) = direction else {
+        return first;
+    };
+    let mut second = pass(Some(d));
+    for c in second.iter_mut().flatten() {
+        c.residuals.common_direction = source.clone();
     }
+    second
 }
 
 /// The plane through the camera centre that holds a calibrated rod's line (its knots
