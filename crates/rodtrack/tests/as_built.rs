@@ -233,7 +233,7 @@ fn random_setups_with_known_poses_meet_the_targets() {
 /// Known poses without their angle (an operator who pushes the rods to their stops and does
 /// not know their angle there, as in the validation set): they carry the scale along the
 /// travel and place each rod's line; its direction is the rods' common one, from the bare
-/// rods' outlines beyond the markers. Position and angle within the accuracy issue's targets,
+/// rods' outlines beside the markers. Position and angle within the accuracy issue's targets,
 /// no gross error, full coverage. Setup 9 read 0.0023 rad std, 0.0133 rad max (its cameras
 /// together) while the common direction came from the markers' silhouettes.
 #[test]

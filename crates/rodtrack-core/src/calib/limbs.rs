@@ -3,10 +3,11 @@
 //! A cylinder's outline in a perspective image is the image of two lines on its surface
 //! parallel to its axis (where the rays graze it): each outline's plane through the camera
 //! centre holds the rod's 3-D direction, as the axis' own plane does. The first pass's line of
-//! a rod comes from its marker's ring silhouettes and its clicks, over the marker's travel at
-//! most; the rod's steel outline runs on beyond the marker over the whole rod the image shows.
-//! Along the first pass's line, in the reference frame and away from the marker, each side's
-//! outline is found where the profile across the rod crosses halfway from the rod's limb to
+//! a rod comes from its marker's ring silhouettes (100 mm of them in the reference frame, a few
+//! more at known poses) and its clicks; the bare steel rod lies beside the marker in the
+//! reference frame over the rest of the span the marker sweeps over its travel (the line's
+//! knots: up to about 450 mm). Along the first pass's line over that span, in the reference
+//! frame and away from the marker, each side's outline is found where the profile across the rod crosses halfway from the rod's limb to
 //! the background beyond it; the rows where the background beyond is not uniform (a figure, a
 //! field line, the marker) or the limb does not stand out from it are left out. One line is
 //! fitted to each side's points through the lens (undistorted), robustly; its plane weighs in

@@ -65,8 +65,8 @@ pub fn calibrate_rods(
         .filter_map(|c| c.as_ref().ok())
         .filter_map(|c| rod_plane(c, k))
         .collect();
-    // The bare rods' outlines beyond their markers, where three rods or more show one: they
-    // run over far more of each rod than its marker's travel (module `limbs`).
+    // The bare rods' outlines beside their markers, where three rods or more show one: over
+    // the span each marker sweeps, far longer than its rings (module `limbs`).
     let mut outlined = 0;
     let mut outlines = Vec::new();
     for (c, i) in first.iter().zip(&inputs) {
