@@ -31,6 +31,15 @@ fn sim(cam: u32, t0: Option<u64>) -> String {
     }
 }
 
+/// A fresh test folder `name` and the calibration of the `goals` table (seed 3) in it, from
+/// frame 0's images only.
+fn goals_table(name: &str) -> (std::path::PathBuf, String) {
+    let t = dir(name);
+    let calib = calibration_of(&t, "goals", &["--seed", "3", "--every", "100000"]);
+    let c = calib.display().to_string();
+    (t, c)
+}
+
 fn read_lines(path: &Path) -> Vec<String> {
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -41,10 +50,7 @@ fn read_lines(path: &Path) -> Vec<String> {
 
 #[test]
 fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
-    let t = dir("zenoh_events");
-    // The `goals` table (seed 3), only frame 0's images (the calibration's).
-    let calib = calibration_of(&t, "goals", &["--seed", "3", "--every", "100000"]);
-    let c = calib.display().to_string();
+    let (t, c) = goals_table("zenoh_events");
     let port = free_port();
     let events = t.join("events.jsonl");
     let mcap = t.join("fuse.mcap");
@@ -153,9 +159,7 @@ fn the_fusion_node_scores_the_goal_as_an_in_process_session_does() {
 
 #[test]
 fn a_camera_node_alone_publishes_its_cameras_events() {
-    let t = dir("zenoh_events_camera");
-    let calib = calibration_of(&t, "goals", &["--seed", "3", "--every", "100000"]);
-    let c = calib.display().to_string();
+    let (t, c) = goals_table("zenoh_events_camera");
     let port = free_port();
     // A control program listens; the camera node connects to it.
     let session = test_session("listen", port);

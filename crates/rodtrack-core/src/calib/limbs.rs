@@ -92,13 +92,12 @@ pub(super) fn limb_planes(
             if !inside {
                 continue;
             }
-            let t_of = |j: usize| t0 + j as f64 / SAMPLES_PER_PX;
             let j_of = |t: f64| (((t - t0) * SAMPLES_PER_PX).round() as usize).min(n - 1);
             let limb = j_of(0.8 * r)..j_of(1.0 * r) + 1;
             let Some(edge) = outline_at(&profile, limb, j_of(1.4 * r), full_scale) else {
                 continue;
             };
-            let t = t_of(0) + edge / SAMPLES_PER_PX;
+            let t = t0 + edge / SAMPLES_PER_PX;
             let (x, y) = lp.offset(0.0, side * t);
             let (u, v) = k.pixel_to_normalized(x, y);
             pts.push([u, v]);
